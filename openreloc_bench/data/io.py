@@ -1,0 +1,143 @@
+"""Low-level file I/O: atomic writes and strict image/pose readers with one-line errors.
+
+Every writer goes through :func:`atomic_write_bytes` (temp file in the same directory + rename), so
+an interrupted run never leaves a half-written file that a resumed run would trust.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+
+from openreloc_bench.errors import DataError
+
+DEPTH_SCALE_MM = 1000.0  # depth PNG stores uint16 millimetres (ScanNet convention)
+
+
+def atomic_write_bytes(path: Path | str, data: bytes) -> None:
+    """Write ``data`` to ``path`` atomically: readers see the old file or the new one, never a part."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def atomic_write_text(path: Path | str, text: str) -> None:
+    atomic_write_bytes(path, text.encode("utf-8"))
+
+
+def write_json(path: Path | str, obj: Any) -> None:
+    """Deterministic JSON (sorted keys, fixed indent) so identical content gives identical bytes."""
+    atomic_write_text(path, json.dumps(obj, indent=1, sort_keys=True) + "\n")
+
+
+def read_json(path: Path | str) -> Any:
+    path = Path(path)
+    if not path.is_file():
+        raise DataError(path, "file not found")
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except (json.JSONDecodeError, UnicodeDecodeError) as e:
+        raise DataError(path, f"not valid JSON ({e})") from None
+
+
+def encode_png(image: np.ndarray) -> bytes:
+    """PNG bytes of an RGB uint8 (H,W,3), or a single-channel uint8/uint16 image."""
+    if image.ndim == 3:
+        image = cv2.cvtColor(image, cv2.COLOR_RGB2BGR)
+    ok, buf = cv2.imencode(".png", image, [cv2.IMWRITE_PNG_COMPRESSION, 3])
+    if not ok:
+        raise ValueError("PNG encoding failed")
+    return buf.tobytes()
+
+
+def write_png(path: Path | str, image: np.ndarray) -> None:
+    atomic_write_bytes(path, encode_png(image))
+
+
+def _read_raw(path: Path) -> np.ndarray:
+    if not path.is_file():
+        raise DataError(path, "file not found")
+    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    if img is None:
+        raise DataError(path, "unreadable image (corrupt or not an image)")
+    return img
+
+
+def read_rgb(path: Path | str, expect_hw: tuple[int, int] | None = None) -> np.ndarray:
+    """RGB uint8 (H,W,3); grey images are expanded, alpha dropped, 16-bit scaled down."""
+    path = Path(path)
+    img = _read_raw(path)
+    if img.dtype == np.uint16:
+        img = (img >> 8).astype(np.uint8)
+    if img.ndim == 2:
+        img = cv2.cvtColor(img, cv2.COLOR_GRAY2RGB)
+    elif img.shape[2] == 4:
+        img = cv2.cvtColor(img, cv2.COLOR_BGRA2RGB)
+    else:
+        img = cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
+    _check_size(path, img, expect_hw)
+    return img
+
+
+def read_depth(path: Path | str, scale: float = DEPTH_SCALE_MM, expect_hw: tuple[int, int] | None = None) -> np.ndarray:
+    """Metric depth float32 (H,W) from a uint16 PNG; 0 (invalid) becomes 0.0."""
+    path = Path(path)
+    img = _read_raw(path)
+    if img.ndim != 2 or img.dtype != np.uint16:
+        raise DataError(path, f"depth must be a single-channel uint16 PNG, got {img.dtype} with shape {img.shape}")
+    _check_size(path, img, expect_hw)
+    return img.astype(np.float32) / scale
+
+
+def read_instance(path: Path | str, expect_hw: tuple[int, int] | None = None) -> np.ndarray:
+    """Instance ids int32 (H,W) from a uint8/uint16 PNG (0 = no instance)."""
+    path = Path(path)
+    img = _read_raw(path)
+    if img.ndim != 2:
+        raise DataError(path, f"instance image must be single-channel, got shape {img.shape}")
+    _check_size(path, img, expect_hw)
+    return img.astype(np.int32)
+
+
+def depth_to_png(depth_m: np.ndarray, scale: float = DEPTH_SCALE_MM) -> np.ndarray:
+    """Metric depth -> uint16 millimetres; NaN, inf, <= 0 and out-of-range become 0 (invalid)."""
+    d = np.nan_to_num(np.asarray(depth_m, dtype=np.float64), nan=0.0, posinf=0.0, neginf=0.0) * scale
+    d = np.where((d > 0) & (d < 65535.5), np.round(d), 0)
+    return d.astype(np.uint16)
+
+
+def _check_size(path: Path, img: np.ndarray, expect_hw: tuple[int, int] | None) -> None:
+    if expect_hw is not None and img.shape[:2] != tuple(expect_hw):
+        raise DataError(path, f"image is {img.shape[1]}x{img.shape[0]}, expected {expect_hw[1]}x{expect_hw[0]}")
+
+
+def read_matrix(path: Path | str, shape: tuple[int, int] = (4, 4)) -> np.ndarray:
+    """A whitespace-separated matrix file (ScanNet pose / intrinsic) as float64."""
+    path = Path(path)
+    if not path.is_file():
+        raise DataError(path, "file not found")
+    try:
+        rows = [line.split() for line in path.read_text().splitlines() if line.strip()]
+        M = np.array(rows, dtype=np.float64)
+    except ValueError:
+        raise DataError(path, f"malformed matrix: expected {shape[0]} rows of {shape[1]} numbers") from None
+    if M.shape != shape:
+        raise DataError(path, f"malformed matrix: expected shape {shape}, got {M.shape}")
+    return M
+
+
+def format_matrix(M: np.ndarray) -> str:
+    return "\n".join(" ".join(f"{v:.9g}" for v in row) for row in np.asarray(M)) + "\n"

@@ -1,0 +1,116 @@
+"""Typed frames and lazily loaded sequences, shared by every reader (own layout, ScanNet, TUM).
+
+A :class:`SceneSequence` keeps only paths and poses in memory and decodes images on access, so a
+1000-frame scene costs kilobytes until a method actually reads it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Iterator
+
+import numpy as np
+
+from openreloc_bench.data import io
+from openreloc_bench.errors import DataError
+
+
+@dataclass
+class Frame:
+    """One posed RGB-D frame (depth and instances optional)."""
+
+    name: str
+    """``<split>/<frame id>``, the key used in result files."""
+    T_wc: np.ndarray
+    """4x4 camera-to-world pose, OpenCV axes."""
+    K: np.ndarray
+    """3x3 intrinsics."""
+    color: np.ndarray
+    """RGB uint8 (H, W, 3)."""
+    depth: np.ndarray | None = None
+    """Metric depth float32 (H, W), 0 = invalid."""
+    instance: np.ndarray | None = None
+    """Instance ids int32 (H, W), 0 = none."""
+
+
+@dataclass
+class FrameRecord:
+    """Where one frame lives on disk; decoded only when the frame is requested."""
+
+    frame_id: str
+    color_path: Path
+    T_wc: np.ndarray
+    depth_path: Path | None = None
+    instance_path: Path | None = None
+
+
+@dataclass
+class SceneSequence:
+    """An ordered split of posed frames (e.g. a scene's ``mapping`` or ``query`` split)."""
+
+    split: str
+    K: np.ndarray
+    width: int
+    height: int
+    records: list[FrameRecord]
+    depth_scale: float = io.DEPTH_SCALE_MM
+    """Depth PNG units per metre (1000 for ScanNet/this project, 5000 for TUM)."""
+    load_instances: bool = True
+    skipped: dict[str, str] = field(default_factory=dict)
+    """Frames the reader dropped (e.g. invalid ScanNet poses), id -> reason."""
+
+    def __len__(self) -> int:
+        return len(self.records)
+
+    def __iter__(self) -> Iterator[Frame]:
+        for i in range(len(self)):
+            yield self[i]
+
+    def __getitem__(self, i: int) -> Frame:
+        r = self.records[i]
+        hw = (self.height, self.width)
+        return Frame(
+            name=f"{self.split}/{r.frame_id}",
+            T_wc=r.T_wc,
+            K=self.K,
+            color=io.read_rgb(r.color_path, expect_hw=hw),
+            depth=io.read_depth(r.depth_path, self.depth_scale, expect_hw=hw) if r.depth_path else None,
+            instance=io.read_instance(r.instance_path, expect_hw=hw)
+            if (r.instance_path and self.load_instances)
+            else None,
+        )
+
+    @property
+    def names(self) -> list[str]:
+        return [f"{self.split}/{r.frame_id}" for r in self.records]
+
+    @property
+    def poses(self) -> np.ndarray:
+        """(N, 4, 4) camera-to-world poses, without decoding any image."""
+        return np.stack([r.T_wc for r in self.records]) if self.records else np.zeros((0, 4, 4))
+
+    @property
+    def has_depth(self) -> bool:
+        return bool(self.records) and all(r.depth_path is not None for r in self.records)
+
+    @property
+    def has_instances(self) -> bool:
+        return bool(self.records) and all(r.instance_path is not None for r in self.records)
+
+    def subset(self, indices: list[int] | range) -> "SceneSequence":
+        """A view on some frames (e.g. the ScanNet stride split), sharing paths, not copies."""
+        return SceneSequence(
+            self.split, self.K, self.width, self.height, [self.records[i] for i in indices],
+            self.depth_scale, self.load_instances, dict(self.skipped),
+        )
+
+
+def check_intrinsics(K: np.ndarray, path: Path | str) -> np.ndarray:
+    """Validate a 3x3 K (finite, positive focal lengths); raise a DataError naming ``path``."""
+    K = np.asarray(K, dtype=np.float64)
+    if K.shape == (4, 4):
+        K = K[:3, :3]
+    if K.shape != (3, 3) or not np.all(np.isfinite(K)) or K[0, 0] <= 0 or K[1, 1] <= 0:
+        raise DataError(path, "invalid intrinsics (need finite fx, fy > 0)")
+    return K

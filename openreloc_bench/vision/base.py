@@ -1,0 +1,117 @@
+"""The three small interfaces OpenReLoc needs from vision and language models, and their registries.
+
+- :class:`ImageTextEncoder`: crops and texts into one L2-normalised embedding space (CLIP's role).
+- :class:`Describer`: a short text description of one object in a query image (the paper's LLM).
+- :class:`Segmenter`: object masks in a query image (oracle, simulated-noisy or predicted).
+
+Backends register under a name (``@register_encoder("clip")``) and are built from config with
+:func:`create_encoder` / :func:`create_describer` / :func:`create_segmenter`.
+"""
+
+from __future__ import annotations
+
+import abc
+from dataclasses import dataclass
+from typing import Any, Callable, Sequence
+
+import numpy as np
+
+from openreloc_bench.errors import ConfigError
+
+
+class ImageTextEncoder(abc.ABC):
+    """Maps RGB crops and texts into one space; outputs are float32, L2-normalised, row per input."""
+
+    name: str = "encoder"
+    dim: int
+
+    @abc.abstractmethod
+    def encode_images(self, crops: Sequence[np.ndarray]) -> np.ndarray:
+        """RGB uint8 crops of any size -> (N, dim) float32, unit norm. Deterministic on CPU."""
+
+    @abc.abstractmethod
+    def encode_texts(self, texts: Sequence[str]) -> np.ndarray:
+        """Texts -> (N, dim) float32, unit norm."""
+
+    def config(self) -> dict[str, Any]:
+        """What is needed to rebuild this encoder (recorded in maps and results)."""
+        return {"name": self.name}
+
+
+@dataclass
+class ObjectMask:
+    """One object proposal in an image."""
+
+    mask: np.ndarray
+    """bool (H, W)."""
+    box: np.ndarray
+    """[x0, y0, x1, y1] in pixels, inclusive-exclusive (x1 = last column + 1)."""
+    instance_id: int | None = None
+    """Dataset instance id when it comes from ground truth (for diagnostics only)."""
+    score: float = 1.0
+
+
+class Segmenter(abc.ABC):
+    """Finds objects in a query image."""
+
+    name: str = "segmenter"
+
+    @abc.abstractmethod
+    def segment(self, rgb: np.ndarray, instance: np.ndarray | None = None) -> list[ObjectMask]:
+        """RGB uint8 (H, W, 3) (+ dataset instance ids for the oracle tracks) -> object masks."""
+
+
+class Describer(abc.ABC):
+    """Describes one object of an image in a short phrase, using the crop and its context."""
+
+    name: str = "describer"
+
+    @abc.abstractmethod
+    def describe(self, rgb: np.ndarray, mask: np.ndarray) -> str:
+        """RGB uint8 (H, W, 3) and a bool mask of one object -> e.g. 'a red armchair'."""
+
+
+_ENCODERS: dict[str, Callable[..., ImageTextEncoder]] = {}
+_DESCRIBERS: dict[str, Callable[..., Describer]] = {}
+_SEGMENTERS: dict[str, Callable[..., Segmenter]] = {}
+
+
+def _registrar(table: dict[str, Callable[..., Any]]) -> Callable[[str], Callable[[Any], Any]]:
+    def register(name: str) -> Callable[[Any], Any]:
+        def deco(factory: Any) -> Any:
+            table[name] = factory
+            return factory
+
+        return deco
+
+    return register
+
+
+register_encoder = _registrar(_ENCODERS)
+register_describer = _registrar(_DESCRIBERS)
+register_segmenter = _registrar(_SEGMENTERS)
+
+
+def _create(kind: str, table: dict[str, Callable[..., Any]], name: str, kwargs: dict[str, Any]) -> Any:
+    from openreloc_bench import vision  # noqa: F401  (imports the backends so they register)
+
+    if name not in table:
+        raise ConfigError(f"unknown {kind} '{name}' (available: {', '.join(sorted(table)) or 'none'})")
+    return table[name](**kwargs)
+
+
+def create_encoder(name: str, **kwargs: Any) -> ImageTextEncoder:
+    return _create("encoder", _ENCODERS, name, kwargs)
+
+
+def create_describer(name: str, **kwargs: Any) -> Describer:
+    return _create("describer", _DESCRIBERS, name, kwargs)
+
+
+def create_segmenter(name: str, **kwargs: Any) -> Segmenter:
+    return _create("segmenter", _SEGMENTERS, name, kwargs)
+
+
+def l2_normalize(x: np.ndarray, eps: float = 1e-12) -> np.ndarray:
+    x = np.asarray(x, dtype=np.float32)
+    return x / np.maximum(np.linalg.norm(x, axis=-1, keepdims=True), eps)

@@ -1,0 +1,105 @@
+"""Pose result files.
+
+The benchmark format is the visual-localization one (hloc, map-free): one line per query,
+``name qw qx qy qz tx ty tz`` with (q, t) of **T_cw** (world-to-camera), after ``#`` header lines.
+A TUM export (``timestamp tx ty tz qx qy qz qw``, camera-to-world) is offered for ``evo``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from openreloc_bench import geometry
+from openreloc_bench.data import io
+from openreloc_bench.errors import DataError
+
+RESULTS_HEADER = "# name qw qx qy qz tx ty tz  (T_cw: world-to-camera, quaternion w x y z, metres)"
+UNIT_QUAT_TOL = 1e-3
+
+
+def format_results(poses_wc: dict[str, np.ndarray], comments: list[str] | None = None) -> str:
+    lines = [RESULTS_HEADER] + [f"# {c}" for c in comments or []]
+    for name in sorted(poses_wc):
+        q, t = geometry.pose_to_qt(geometry.invert(poses_wc[name]))
+        if any(c.isspace() for c in name) or not name:
+            raise ValueError(f"query name {name!r} must be non-empty without whitespace")
+        lines.append(name + " " + " ".join(f"{v:.10g}" for v in (*q, *t)))
+    return "\n".join(lines) + "\n"
+
+
+def write_results(path: Path | str, poses_wc: dict[str, np.ndarray], comments: list[str] | None = None) -> None:
+    """Write camera-to-world poses as a T_cw result file (sorted by name, atomic)."""
+    io.atomic_write_text(path, format_results(poses_wc, comments))
+
+
+def read_results(path: Path | str) -> dict[str, np.ndarray]:
+    """Read a result file into {name: T_wc}. Malformed lines, duplicates, NaNs and non-unit
+    quaternions are errors naming the file and line (a submission must be explicit)."""
+    path = Path(path)
+    if not path.is_file():
+        raise DataError(path, "file not found")
+    poses: dict[str, np.ndarray] = {}
+    for lineno, raw in enumerate(path.read_text().splitlines(), 1):
+        line = raw.strip()
+        if not line or line.startswith("#"):
+            continue
+        parts = line.split()
+        where = f"line {lineno}"
+        if len(parts) != 8:
+            raise DataError(path, f"{where}: expected 'name qw qx qy qz tx ty tz', got {len(parts)} fields")
+        name = parts[0]
+        try:
+            vals = np.array([float(v) for v in parts[1:]])
+        except ValueError:
+            raise DataError(path, f"{where}: non-numeric value") from None
+        if not np.all(np.isfinite(vals)):
+            raise DataError(path, f"{where}: NaN or inf in pose of '{name}'")
+        qn = np.linalg.norm(vals[:4])
+        if abs(qn - 1.0) > UNIT_QUAT_TOL:
+            raise DataError(path, f"{where}: quaternion of '{name}' is not unit (norm {qn:.4f})")
+        if name in poses:
+            raise DataError(path, f"{where}: duplicate query name '{name}'")
+        poses[name] = geometry.invert(geometry.qt_to_pose(vals[:4], vals[4:]))
+    return poses
+
+
+def write_tum(path: Path | str, poses_wc: dict[str, np.ndarray], timestamps: dict[str, float] | None = None) -> None:
+    """TUM trajectory (``timestamp tx ty tz qx qy qz qw``, camera-to-world) for evo.
+
+    Queries have no time; by default each gets its index in name order as timestamp, so two
+    files written for the same query set align one-to-one in ``evo``.
+    """
+    names = sorted(poses_wc)
+    ts = timestamps or {n: float(i) for i, n in enumerate(names)}
+    lines = ["# timestamp tx ty tz qx qy qz qw  (camera-to-world)"]
+    for n in names:
+        q, t = geometry.pose_to_qt(poses_wc[n])
+        lines.append(f"{ts[n]:.6f} " + " ".join(f"{v:.10g}" for v in (*t, q[1], q[2], q[3], q[0])))
+    io.atomic_write_text(path, "\n".join(lines) + "\n")
+
+
+def read_tum_trajectory(path: Path | str) -> tuple[np.ndarray, np.ndarray]:
+    """(timestamps (N,), T_wc (N,4,4)) from a TUM trajectory / groundtruth file."""
+    path = Path(path)
+    if not path.is_file():
+        raise DataError(path, "file not found")
+    stamps, poses = [], []
+    for lineno, raw in enumerate(path.read_text().splitlines(), 1):
+        line = raw.strip()
+        if not line or line.startswith("#"):
+            continue
+        parts = line.split()
+        try:
+            vals = [float(v) for v in parts]
+        except ValueError:
+            raise DataError(path, f"line {lineno}: non-numeric value") from None
+        if len(vals) != 8 or not np.all(np.isfinite(vals)):
+            raise DataError(path, f"line {lineno}: expected 'timestamp tx ty tz qx qy qz qw' with finite numbers")
+        q = np.array([vals[7], vals[4], vals[5], vals[6]])
+        if np.linalg.norm(q) < 1e-6:
+            raise DataError(path, f"line {lineno}: zero quaternion")
+        stamps.append(vals[0])
+        poses.append(geometry.qt_to_pose(q, vals[1:4]))
+    return np.array(stamps), (np.stack(poses) if poses else np.zeros((0, 4, 4)))

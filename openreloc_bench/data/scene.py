@@ -185,6 +185,7 @@ class SceneWriter:
         T_wc: np.ndarray,
     ) -> None:
         fid = frame_id(i)
+        T_wc = geometry.check_pose(T_wc, f"{split}/{fid}")
         d = self.root / split
         io.write_png(d / "color" / f"{fid}.png", np.ascontiguousarray(color, dtype=np.uint8))
         if depth_m is not None:
@@ -193,7 +194,7 @@ class SceneWriter:
             if instance.max(initial=0) > 65535 or instance.min(initial=0) < 0:
                 raise ValueError("instance ids must fit in uint16")
             io.write_png(d / "instance" / f"{fid}.png", instance.astype(np.uint16))
-        io.atomic_write_text(d / "pose" / f"{fid}.txt", io.format_matrix(geometry.check_pose(T_wc, f"{split}/{fid}")))
+        io.atomic_write_text(d / "pose" / f"{fid}.txt", io.format_matrix(T_wc))
 
     def write_displacements(self, displacements: list[dict[str, Any]]) -> None:
         io.write_json(self.root / "query_displaced" / "displacements.json", displacements)

@@ -1,0 +1,40 @@
+"""Shared fixtures: tiny scenes written in the project's layout (no renderer needed)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from openreloc_bench import geometry
+from openreloc_bench.data.scene import ObjectInfo, SceneWriter
+
+
+def write_tiny_scene(root: Path, n_mapping: int = 6, n_query: int = 3, hw: tuple[int, int] = (24, 32), seed: int = 0) -> Path:
+    """A scene of random-texture frames on a circle of poses, with one box-shaped 'object' id 1.
+
+    Good for format, harness and method-contract tests; not geometrically consistent imagery.
+    """
+    rng = np.random.default_rng(seed)
+    h, w = hw
+    K = geometry.intrinsics_from_fov(w, h, 60.0)
+    writer = SceneWriter(root)
+    writer.write_scene_info({"spec_hash": f"tiny-{seed}", "seed": seed, "width": w, "height": h})
+    writer.write_objects([ObjectInfo(id=1, category="box", aabb=[[-0.5, -0.5, 0.0], [0.5, 0.5, 1.0]])])
+    for split, n, phase in (("mapping", n_mapping, 0.0), ("query", n_query, 0.5)):
+        writer.write_intrinsics(split, K)
+        for i in range(n):
+            a = 2 * np.pi * (i + phase) / n
+            T = geometry.look_at([3 * np.cos(a), 3 * np.sin(a), 1.5], [0, 0, 0.5])
+            color = rng.integers(0, 255, (h, w, 3), dtype=np.uint8)
+            depth = np.full((h, w), 3.0, np.float32)
+            inst = np.zeros((h, w), np.int32)
+            inst[h // 4 : 3 * h // 4, w // 4 : 3 * w // 4] = 1
+            writer.write_frame(split, i, color, depth, inst, T)
+    return root
+
+
+@pytest.fixture
+def tiny_scene(tmp_path: Path) -> Path:
+    return write_tiny_scene(tmp_path / "tiny")

@@ -1,0 +1,61 @@
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from openreloc_bench import geometry
+from openreloc_bench.data.results import read_results, read_tum_trajectory, write_results, write_tum
+from openreloc_bench.errors import DataError
+
+
+@pytest.fixture
+def poses() -> dict[str, np.ndarray]:
+    rng = np.random.default_rng(3)
+    R = Rotation.random(5, random_state=3).as_matrix()
+    return {f"query/{i:06d}": geometry.make_pose(R[i], rng.normal(size=3)) for i in range(5)}
+
+
+def test_round_trip_and_convention(tmp_path: Path, poses):
+    path = tmp_path / "poses.txt"
+    write_results(path, poses)
+    lines = path.read_text().splitlines()
+    assert lines[0].startswith("#") and "T_cw" in lines[0]
+    # the stored (q, t) is world-to-camera: t = -R^T c
+    name, *vals = lines[1].split()
+    T_cw = geometry.qt_to_pose(np.array(vals[:4], float), np.array(vals[4:], float))
+    np.testing.assert_allclose(T_cw, geometry.invert(poses[name]), atol=1e-8)
+    back = read_results(path)
+    assert back.keys() == poses.keys()
+    for k in poses:
+        np.testing.assert_allclose(back[k], poses[k], atol=1e-8)
+
+
+def test_tum_export_round_trip(tmp_path: Path, poses):
+    write_tum(tmp_path / "t.txt", poses)
+    stamps, T = read_tum_trajectory(tmp_path / "t.txt")
+    assert stamps.tolist() == [0.0, 1.0, 2.0, 3.0, 4.0]
+    np.testing.assert_allclose(T, np.stack([poses[k] for k in sorted(poses)]), atol=1e-8)
+
+
+@pytest.mark.parametrize(
+    "line, message",
+    [
+        ("query/1 1 0 0 0 0 0", "expected 'name qw qx qy qz tx ty tz'"),
+        ("query/1 1 0 0 0 0 0 nan", "NaN or inf"),
+        ("query/1 2 0 0 0 0 0 0", "not unit"),
+        ("query/1 1 0 0 0 0 0 abc", "non-numeric"),
+    ],
+)
+def test_malformed_lines(tmp_path: Path, line, message):
+    p = tmp_path / "bad.txt"
+    p.write_text(f"# header\n{line}\n")
+    with pytest.raises(DataError, match=message):
+        read_results(p)
+
+
+def test_duplicate_names_rejected(tmp_path: Path):
+    p = tmp_path / "dup.txt"
+    p.write_text("q/1 1 0 0 0 0 0 0\nq/1 1 0 0 0 1 0 0\n")
+    with pytest.raises(DataError, match="duplicate query name 'q/1'"):
+        read_results(p)

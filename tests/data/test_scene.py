@@ -1,0 +1,101 @@
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from openreloc_bench.data import io
+from openreloc_bench.data.scene import ObjectInfo, Scene, SceneWriter
+from openreloc_bench.errors import DataError
+from tests.conftest import write_tiny_scene
+
+
+def test_round_trip(tiny_scene: Path):
+    scene = Scene(tiny_scene)
+    assert scene.splits() == ["mapping", "query"]
+    assert scene.objects[1].category == "box"
+    seq = scene.sequence("mapping")
+    assert len(seq) == 6 and seq.has_depth and seq.has_instances
+    f = seq[2]
+    assert f.name == "mapping/000002"
+    assert f.color.shape == (24, 32, 3) and f.color.dtype == np.uint8
+    assert f.depth is not None and np.allclose(f.depth, 3.0)
+    assert f.instance is not None and set(np.unique(f.instance)) == {0, 1}
+    assert np.allclose(seq.poses[2], f.T_wc)
+
+
+def test_depth_png_is_millimetres_and_invalid_is_zero(tmp_path: Path):
+    d = np.array([[1.25, 0.0], [np.nan, 70.0]], np.float32)  # 70 m overflows uint16 mm
+    png = io.depth_to_png(d)
+    assert png.dtype == np.uint16 and png.tolist() == [[1250, 0], [0, 0]]
+    io.write_png(tmp_path / "d.png", png)
+    back = io.read_depth(tmp_path / "d.png")
+    assert back.tolist() == [[1.25, 0.0], [0.0, 0.0]]
+
+
+def test_same_content_gives_identical_bytes(tmp_path: Path):
+    a = write_tiny_scene(tmp_path / "a")
+    b = write_tiny_scene(tmp_path / "b")
+    files_a = sorted(p.relative_to(a) for p in a.rglob("*") if p.is_file())
+    assert files_a == sorted(p.relative_to(b) for p in b.rglob("*") if p.is_file())
+    assert all((a / f).read_bytes() == (b / f).read_bytes() for f in files_a)
+
+
+def test_no_temp_files_left(tiny_scene: Path):
+    assert not list(tiny_scene.rglob("*.tmp"))
+
+
+def _first(scene: Path, sub: str) -> Path:
+    return sorted((scene / "mapping" / sub).iterdir())[0]
+
+
+@pytest.mark.parametrize(
+    "corrupt, message",
+    [
+        (lambda s: _first(s, "color").unlink(), "file not found"),
+        (lambda s: _first(s, "color").write_bytes(b"not a png"), "unreadable image"),
+        (lambda s: _first(s, "pose").write_text("1 0 0\n0 1 0\n"), "malformed matrix"),
+        (lambda s: _first(s, "pose").write_text("1 0 0 0\n0 1 0 0\n0 0 1 x\n0 0 0 1\n"), "malformed matrix"),
+        (lambda s: _first(s, "pose").write_text("2 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n"), "not a rigid"),
+        (lambda s: _first(s, "pose").write_text("nan 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n"), "not a rigid"),
+    ],
+    ids=["missing-color", "corrupt-png", "short-pose", "non-numeric-pose", "scaled-pose", "nan-pose"],
+)
+def test_bad_files_raise_one_line_errors_naming_the_file(tiny_scene: Path, corrupt, message):
+    corrupt(tiny_scene)
+    with pytest.raises(DataError) as e:
+        seq = Scene(tiny_scene).sequence("mapping")
+        _ = [seq[i] for i in range(len(seq))]
+    assert message in str(e.value) and "mapping" in str(e.value) and "\n" not in str(e.value)
+
+
+def test_wrong_image_size_is_an_error(tiny_scene: Path):
+    io.write_png(_first(tiny_scene, "depth"), np.zeros((10, 10), np.uint16))
+    with pytest.raises(DataError, match="expected 32x24"):
+        Scene(tiny_scene).sequence("mapping")[0]
+
+
+def test_depth_must_be_uint16(tiny_scene: Path):
+    io.write_png(_first(tiny_scene, "depth"), np.zeros((24, 32), np.uint8))
+    with pytest.raises(DataError, match="uint16"):
+        Scene(tiny_scene).sequence("mapping")[0]
+
+
+def test_objects_json_validation(tiny_scene: Path):
+    (tiny_scene / "objects.json").write_text(json.dumps([{"id": 0, "category": "x"}]))
+    with pytest.raises(DataError, match="id must be an integer >= 1"):
+        Scene(tiny_scene)
+    (tiny_scene / "objects.json").write_text(json.dumps([{"id": 1, "category": "x", "aabb": [[1, 1, 1], [0, 0, 0]]}]))
+    with pytest.raises(DataError, match="min <= max"):
+        Scene(tiny_scene)
+    (tiny_scene / "objects.json").write_text("{broken")
+    with pytest.raises(DataError, match="not valid JSON"):
+        Scene(tiny_scene)
+
+
+def test_writer_rejects_non_rigid_pose_and_writes_nothing(tmp_path: Path):
+    w = SceneWriter(tmp_path)
+    w.write_objects([ObjectInfo(id=1, category="a")])
+    with pytest.raises(ValueError):
+        w.write_frame("mapping", 0, np.zeros((4, 4, 3), np.uint8), None, None, np.diag([1, 1, 2, 1.0]))
+    assert not w.has_frame("mapping", 0)

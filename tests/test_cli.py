@@ -1,0 +1,26 @@
+import subprocess
+import sys
+
+from openreloc_bench.cli import build_parser, command_modules, main
+
+
+def test_every_command_is_documented():
+    mods = command_modules()
+    assert "methods" in {m.NAME for m in mods}
+    help_text = build_parser().format_help()
+    for m in mods:
+        assert m.NAME in help_text and m.HELP
+        assert m.__doc__, f"command {m.NAME} needs a module docstring (its --help description)"
+
+
+def test_methods_lists_nearest_frame(capsys):
+    assert main(["methods"]) == 0
+    assert "nearest-frame" in capsys.readouterr().out
+
+
+def test_console_script_help_and_user_error():
+    exe = [sys.executable, "-m", "openreloc_bench.cli"]
+    out = subprocess.run(exe + ["--help"], capture_output=True, text=True)
+    assert out.returncode == 0 and "methods" in out.stdout
+    bad = subprocess.run(exe + ["methods", "--bogus"], capture_output=True, text=True)
+    assert bad.returncode == 2 and "unrecognized arguments" in bad.stderr

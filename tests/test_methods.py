@@ -1,0 +1,70 @@
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from openreloc_bench import geometry
+from openreloc_bench.data.scene import Scene
+from openreloc_bench.errors import ConfigError, DataError
+from openreloc_bench.methods import (
+    NearestFrame,
+    PoseEstimate,
+    QueryFrame,
+    Relocalizer,
+    available_methods,
+    create_method,
+    method_config,
+    register,
+)
+
+
+def test_nearest_frame_is_registered_through_entry_points():
+    assert "nearest-frame" in available_methods()
+    m = create_method("nearest-frame")
+    assert isinstance(m, Relocalizer) and m.name == "nearest-frame"
+
+
+def test_unknown_method_lists_known_ones():
+    with pytest.raises(ConfigError, match="unknown method 'nope'.*nearest-frame"):
+        create_method("nope")
+
+
+def test_unknown_config_key():
+    with pytest.raises(ConfigError, match="thumbsize"):
+        NearestFrame(thumbsize=8)
+
+
+def test_in_process_registration():
+    register("test-identity", NearestFrame)
+    assert isinstance(create_method("test-identity"), NearestFrame)
+
+
+def test_nearest_frame_retrieves_the_matching_mapping_frame(tiny_scene: Path, tmp_path: Path):
+    scene = Scene(tiny_scene)
+    mapping = scene.sequence("mapping")
+    m = NearestFrame(thumb_size=8)
+    m.build_map(mapping, tmp_path / "map")
+    m2 = NearestFrame(thumb_size=8)
+    m2.load_map(tmp_path / "map")
+    for i in (0, 3):
+        f = mapping[i]
+        est = m2.localize(QueryFrame(f.name, f.color, f.K))
+        assert isinstance(est, PoseEstimate)
+        assert est.diagnostics["mapping_index"] == i
+        assert geometry.translation_error(f.T_wc, est.T_wc) < 1e-6
+    # brightness change must not change the answer (zero-mean, unit-norm thumbnails)
+    f = mapping[4]
+    darker = (f.color * 0.6).astype(np.uint8)
+    assert m2.localize(QueryFrame(f.name, darker, f.K)).diagnostics["mapping_index"] == 4
+    assert method_config(m2) == {"name": "nearest-frame", "config": {"thumb_size": 8}}
+
+
+def test_load_missing_map(tmp_path: Path):
+    with pytest.raises(DataError, match="map file not found"):
+        NearestFrame().load_map(tmp_path)
+
+
+def test_query_track():
+    img = np.zeros((2, 2, 3), np.uint8)
+    assert QueryFrame("q/1", img, np.eye(3)).track == "predicted"
+    assert QueryFrame("q/1", img, np.eye(3), instance=np.zeros((2, 2), int)).track == "oracle-mask"

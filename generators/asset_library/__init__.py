@@ -1,0 +1,1 @@
+"""Category modules of the procedural asset library; importing each registers its categories."""

@@ -1,0 +1,62 @@
+"""Procedural textures: shape, determinism, tiling, tinting, and clear errors."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from generators.materials import COLOURS, MATERIALS, make_texture
+from openreloc_bench.errors import ConfigError
+
+REQUIRED_MATERIALS = ("wood", "fabric", "plaster", "metal", "ceramic", "paper", "plastic", "glass", "leather", "stone")
+REQUIRED_COLOURS = ("red", "blue", "white", "black", "grey", "brown", "beige", "green", "yellow", "orange", "pink", "purple")
+
+
+def test_required_materials_and_colours_exist():
+    assert set(REQUIRED_MATERIALS) <= set(MATERIALS)
+    assert set(REQUIRED_COLOURS) <= set(COLOURS)
+    for name, rgb in COLOURS.items():
+        assert len(rgb) == 3 and all(0.0 <= c <= 1.0 for c in rgb), name
+
+
+@pytest.mark.parametrize("material", MATERIALS)
+def test_texture_shape_dtype_and_determinism(material):
+    a = make_texture(material, COLOURS["red"], seed=3, size=32)
+    assert a.shape == (32, 32, 3) and a.dtype == np.uint8
+    assert np.array_equal(a, make_texture(material, COLOURS["red"], seed=3, size=32))
+    assert not np.array_equal(a, make_texture(material, COLOURS["red"], seed=4, size=32))
+    blue = make_texture(material, COLOURS["blue"], seed=3, size=32)
+    assert blue[..., 2].mean() > a[..., 2].mean() and a[..., 0].mean() > blue[..., 0].mean()
+    assert make_texture(material, COLOURS["grey"], seed=0).shape == (64, 64, 3)
+
+
+@pytest.mark.parametrize("material", MATERIALS)
+def test_texture_tiles_without_seam(material):
+    """The wrap-around column/row step is no larger than typical neighbour steps (no seam)."""
+    t = make_texture(material, COLOURS["beige"], seed=1, size=64).astype(float).mean(axis=2)
+    for axis in (0, 1):
+        inner = np.abs(np.diff(t, axis=axis)).mean()
+        wrap = np.abs(np.take(t, 0, axis=axis) - np.take(t, -1, axis=axis)).mean()
+        assert wrap <= 3 * inner + 2.0, (material, axis, wrap, inner)
+
+
+def test_materials_have_distinct_patterns():
+    stds = {m: make_texture(m, COLOURS["grey"], seed=0).astype(float).std() for m in MATERIALS}
+    assert stds["plastic"] < stds["wood"] and stds["plastic"] < stds["fabric"] and stds["plastic"] < stds["stone"]
+    assert stds["wood"] > 5 and stds["fabric"] > 5
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "word"),
+    [
+        ({"material": "unobtainium"}, "unobtainium"),
+        ({"rgb": (1.5, 0.0, 0.0)}, "colour"),
+        ({"rgb": (0.1, 0.2)}, "colour"),
+        ({"seed": -1}, "seed"),
+        ({"size": 2}, "size"),
+    ],
+)
+def test_bad_texture_arguments_raise_config_error(kwargs, word):
+    args = {"material": "wood", "rgb": (0.5, 0.5, 0.5), "seed": 0, "size": 16} | kwargs
+    with pytest.raises(ConfigError, match=word):
+        make_texture(**args)

@@ -1,0 +1,78 @@
+"""Multi-view landmark descriptors (paper section 3.1, Eq. 1).
+
+f_i = mean of the image-encoder embeddings of the landmark's top-k most visible crops, re-normalised
+(cosine similarity is what association compares). A crop is the landmark's 2D box in that frame
+(the box of its seen, depth-tested projected points), padded for context.
+"""
+
+from __future__ import annotations
+
+from collections import defaultdict
+from dataclasses import dataclass
+
+import numpy as np
+from tqdm import tqdm
+
+from openreloc_bench.data.types import SceneSequence
+from openreloc_bench.openreloc.mapping import read_color
+from openreloc_bench.openreloc.reference_frames import Sightings
+from openreloc_bench.vision.base import ImageTextEncoder, l2_normalize
+
+
+@dataclass
+class DescriptorConfig:
+    """Which crops describe a landmark."""
+
+    top_k: int = 5
+    """Number of most-visible views averaged (k in the paper)."""
+    padding: float = 0.1
+    """Crop = 2D box grown by this share of its width/height on each side (clipped to the image)."""
+    min_crop_px: int = 8
+    """Views whose box is narrower or shorter than this many pixels are used only if nothing else is."""
+    batch_size: int = 64
+    """Crops per encoder call."""
+
+
+def pad_box(box: np.ndarray, padding: float, width: int, height: int) -> tuple[int, int, int, int]:
+    """Integer crop window [x0, y0, x1, y1) of a box grown by ``padding`` and clipped to the image."""
+    x0, y0, x1, y1 = (float(v) for v in box)
+    px, py = padding * (x1 - x0), padding * (y1 - y0)
+    return (max(0, int(np.floor(x0 - px))), max(0, int(np.floor(y0 - py))),
+            min(width, int(np.ceil(x1 + px))), min(height, int(np.ceil(y1 + py))))
+
+
+def top_views(sightings: Sightings, landmark: int, cfg: DescriptorConfig) -> np.ndarray:
+    """Indices (into ``sightings``) of the landmark's ``top_k`` most visible, large-enough views."""
+    idx = np.flatnonzero(sightings.landmark == landmark)
+    side = np.minimum(sightings.box[idx, 2] - sightings.box[idx, 0], sightings.box[idx, 3] - sightings.box[idx, 1])
+    large = side >= cfg.min_crop_px
+    pool = idx[large] if large.any() else idx
+    order = np.lexsort((sightings.frame[pool], -sightings.n_points[pool], -sightings.visibility[pool]))
+    return pool[order[: cfg.top_k]]
+
+
+def compute_descriptors(
+    seq: SceneSequence, sightings: Sightings, landmarks: list[int], encoder: ImageTextEncoder,
+    cfg: DescriptorConfig, progress: bool = True,
+) -> tuple[dict[int, np.ndarray], dict[int, int]]:
+    """(landmark -> unit descriptor, landmark -> number of crops used). Each frame is read once."""
+    jobs: dict[int, list[tuple[int, np.ndarray]]] = defaultdict(list)  # frame -> [(landmark, box)]
+    for lid in landmarks:
+        for s in top_views(sightings, lid, cfg):
+            jobs[int(sightings.frame[s])].append((lid, sightings.box[s]))
+    crops, owners = [], []
+    for f in tqdm(sorted(jobs), desc="crops", disable=not progress, leave=False):
+        rgb = read_color(seq, f)
+        for lid, box in jobs[f]:
+            x0, y0, x1, y1 = pad_box(box, cfg.padding, seq.width, seq.height)
+            crops.append(np.ascontiguousarray(rgb[y0:y1, x0:x1]))
+            owners.append(lid)
+    feats = [encoder.encode_images(crops[i : i + cfg.batch_size]) for i in range(0, len(crops), cfg.batch_size)]
+    emb = np.concatenate(feats) if feats else np.zeros((0, encoder.dim), np.float32)
+    owners_arr = np.array(owners)
+    out, used = {}, {}
+    for lid in landmarks:
+        rows = emb[owners_arr == lid]
+        used[lid] = len(rows)
+        out[lid] = l2_normalize(rows.mean(axis=0)) if len(rows) else np.zeros(encoder.dim, np.float32)
+    return out, used

@@ -1,0 +1,34 @@
+"""Invalid-object filtering by reference-frame frequency (global and co-visibility-local)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from openreloc_bench.openreloc.filtering import FilterConfig, invalid_landmarks, reference_frequency
+from openreloc_bench.openreloc.map import ReferenceFrame
+
+
+def rfs(contents: list[list[int]]) -> list[ReferenceFrame]:
+    return [ReferenceFrame(k, np.eye(4), {i: np.zeros(4, np.float32) for i in ids}) for k, ids in enumerate(contents)]
+
+
+# two rooms: room A (wall 1, chair 2, table 3), room B (wall 4, bed 5), never seen together
+TWO_ROOMS = rfs([[1, 2], [1, 3], [1, 2], [1], [4, 5], [4], [4, 5], [4]])
+
+
+def test_global_frequency() -> None:
+    f = reference_frequency(TWO_ROOMS, [1, 2, 3, 4, 5], "global")
+    assert f == pytest.approx({1: 0.5, 2: 0.25, 3: 0.125, 4: 0.5, 5: 0.25})
+
+
+def test_local_frequency_is_per_neighbourhood() -> None:
+    f = reference_frequency(TWO_ROOMS, [1, 2, 3, 4, 5], "local")
+    assert f == pytest.approx({1: 1.0, 2: 0.5, 3: 0.25, 4: 1.0, 5: 0.5})
+    bad, _ = invalid_landmarks(TWO_ROOMS, [1, 2, 3, 4, 5], FilterConfig(max_frequency=0.75))
+    assert bad == {1, 4}  # the walls; globally (0.5) they would look like furniture
+
+
+def test_disabled_filter_keeps_everything() -> None:
+    bad, freq = invalid_landmarks(TWO_ROOMS, [1, 2], FilterConfig(enabled=False))
+    assert bad == set() and freq[1] == 1.0

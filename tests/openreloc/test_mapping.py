@@ -1,0 +1,97 @@
+"""TSDF fusion, depth-tested observation and both instance-lifting paths on an analytic box room."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+from boxworld import ROOM, NoisyMaskSegmenter, boxworld_sequence
+
+from openreloc_bench.data import io
+from openreloc_bench.data.scene import Scene
+from openreloc_bench.errors import DataError
+from openreloc_bench.openreloc import mapping as M
+
+FUSION = M.FusionConfig(voxel_size=0.05)
+
+
+@pytest.fixture(scope="module")
+def room(tmp_path_factory: pytest.TempPathFactory) -> tuple:
+    seq = boxworld_sequence(tmp_path_factory.mktemp("room"), n_frames=16, hw=(96, 128))
+    rec = M.fuse_tsdf(seq, FUSION, progress=False)
+    obs = M.observe(seq, rec.points, rec.usable, M.ObservationConfig(), NoisyMaskSegmenter(split_prob=0.0), progress=False)
+    return seq, rec, obs
+
+
+def box_distance(points: np.ndarray) -> np.ndarray:
+    """Distance of each point to the nearest box surface of the room (exact, analytic)."""
+    d = []
+    for b in ROOM:
+        lo, hi = np.array(b.lo), np.array(b.hi)
+        outside = np.linalg.norm(np.maximum(0, np.maximum(lo - points, points - hi)), axis=1)
+        inside = np.min(np.minimum(points - lo, hi - points), axis=1)
+        d.append(np.where(outside > 0, outside, inside))
+    return np.min(d, axis=0)
+
+
+def test_fused_cloud_lies_on_the_boxes(room: tuple) -> None:
+    _, rec, _ = room
+    assert len(rec.points) > 5000 and rec.usable.all() and not rec.skipped
+    assert np.median(box_distance(rec.points)) < 0.02
+    assert np.quantile(box_distance(rec.points), 0.95) < FUSION.voxel_size
+
+
+def test_voting_labels_points_with_the_box_they_lie_on(room: tuple) -> None:
+    _, rec, obs = room
+    labels = M.lift_by_voting(len(rec.points), obs, M.VotingConfig())
+    sets = M.instance_sets(labels, 20)
+    assert {1, 2, 3, 4, 5, 11, 12, 14} <= set(sets)
+    for b in ROOM:
+        if b.id in sets:
+            pts = rec.points[sets[b.id]]
+            inside = np.all((pts >= np.array(b.lo) - 0.06) & (pts <= np.array(b.hi) + 0.06), axis=1)
+            assert inside.mean() > 0.95, b.category
+
+
+def test_observation_discards_occluded_points(room: tuple) -> None:
+    seq, rec, obs = room
+    o = obs[0]
+    uv, z = M.geometry.project(seq.K, seq.records[0].T_wc, rec.points[o.point_idx])
+    depth = M.read_depth(seq, 0)
+    assert np.all(np.abs(z - depth[o.uv[:, 1], o.uv[:, 0]]) < 0.2)
+    # points of a box hidden behind another are not in the frame's seen set
+    assert len(o.point_idx) < 0.5 * len(rec.points)
+
+
+def test_clustering_of_noisy_masks_recovers_instances(room: tuple) -> None:
+    _, rec, obs = room
+    gt = M.instance_sets(M.lift_by_voting(len(rec.points), obs, M.VotingConfig()), 20)
+    pred = M.instance_sets(M.lift_by_clustering(len(rec.points), obs, M.ClusteringConfig()), 20)
+    q = M.instance_quality(pred, gt)
+    assert q["recall"] >= 0.85 and q["precision"] >= 0.75, q
+
+
+def test_instance_quality_counts_iou_matches() -> None:
+    gt = {1: np.arange(0, 100), 2: np.arange(100, 200)}
+    pred = {7: np.arange(0, 90), 8: np.arange(150, 300), 9: np.arange(300, 310)}
+    q = M.instance_quality(pred, gt)
+    assert q["precision"] == pytest.approx(1 / 3) and q["recall"] == pytest.approx(1 / 2)
+
+
+def test_frames_without_depth_are_skipped_and_reported(tmp_path: Path) -> None:
+    seq = boxworld_sequence(tmp_path / "s", n_frames=8)
+    io.write_png(seq.records[2].depth_path, np.zeros((seq.height, seq.width), np.uint16))
+    seq.records[5].depth_path.unlink()
+    cfg = M.FusionConfig(voxel_size=0.05, min_weight=1.0)
+    rec = M.fuse_tsdf(Scene(tmp_path / "s").sequence("mapping"), cfg, progress=False)
+    assert set(rec.skipped) == {"mapping/000002", "mapping/000005"}
+    assert rec.usable.sum() == 6
+
+
+def test_non_rigid_pose_names_the_frame(tmp_path: Path) -> None:
+    seq = boxworld_sequence(tmp_path / "s", n_frames=4)
+    seq.records[1].T_wc = seq.records[1].T_wc * np.array([2.0, 1, 1, 1])[:, None]
+    with pytest.raises(DataError, match="mapping/000001.*rigid"):
+        M.fuse_tsdf(seq, FUSION, progress=False)

@@ -1,0 +1,149 @@
+"""Evaluate relocalization methods on a scene suite: generate missing scenes, build each method's map
+once per scene (cached by method config + scene spec hash), localize every query of the requested
+splits, score them and write pose files, TUM exports and metric tables under RESULTS.
+
+Results are resumable (--resume skips finished (scene, method, split) jobs) and record the method's
+full config, the track, the scene spec hashes and the git commit. Jobs run inline, on a local process
+pool (--workers N) or on Ray (--executor ray; RAY_ADDRESS or --ray-address selects a cluster).
+
+Example:
+  openreloc-bench eval --suite scenes/smoke.yaml --methods nearest-frame --data data --out results
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from openreloc_bench import config
+from openreloc_bench.data import io
+from openreloc_bench.data.scene import QUERY_SPLITS
+from openreloc_bench.errors import ConfigError
+from openreloc_bench.harness import runner, tables
+from openreloc_bench.harness.ablations import ABLATED_METHOD, ABLATION_ROWS, ROBUSTNESS_ROWS, ablation_label
+from openreloc_bench.harness.executors import EXECUTORS
+
+NAME = "eval"
+HELP = "evaluate methods on a scene suite (maps, queries, metrics)"
+ORDER = 40
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    src = p.add_mutually_exclusive_group(required=True)
+    src.add_argument("--suite", type=Path, help="suite YAML (scenes/<suite>.yaml); missing scenes are generated")
+    src.add_argument("--scenes", help="comma-separated scene directories already under --data (e.g. converted ScanNet)")
+    p.add_argument("--methods", required=True, help="comma-separated registered method names")
+    p.add_argument("--data", type=Path, required=True, help="dataset directory (one sub-directory per scene)")
+    p.add_argument("--out", type=Path, required=True, help="results directory")
+    p.add_argument("--splits", default="query", help=f"comma-separated query splits (of {', '.join(QUERY_SPLITS)})")
+    p.add_argument("--track", default="oracle-mask", choices=runner.TRACKS)
+    p.add_argument("--executor", default="local", choices=EXECUTORS)
+    p.add_argument("--workers", type=int, default=1, help="parallel jobs (local: 1 = inline, N = process pool)")
+    p.add_argument("--ray-address", help="existing Ray cluster (default: $RAY_ADDRESS, else a local instance)")
+    p.add_argument("--resume", action="store_true", help="skip (scene, method, split) jobs that already finished")
+    p.add_argument("--timeout", type=float, default=300.0, help="per-query limit in seconds (0 = none, in-process)")
+    p.add_argument("--ablations", action="store_true", help=f"also run the paper's ablation rows of {ABLATED_METHOD}")
+    p.add_argument("--robustness", action="store_true", help="also localize the lighting 1-4 and displaced splits")
+    p.add_argument("--method-config", action="append", default=[], metavar="NAME=YAML",
+                   help="config overrides for one method from a YAML mapping (repeatable)")
+    p.add_argument("--plugin", action="append", default=[], metavar="MODULE",
+                   help="import MODULE first (registers methods with openreloc_bench.methods.register)")
+
+
+def _csv(s: str) -> list[str]:
+    return [x.strip() for x in s.split(",") if x.strip()]
+
+
+def method_runs(names: list[str], config_files: list[str], ablations: bool) -> list[runner.MethodRun]:
+    """Method variants: each named method with its overrides, plus the ablation rows if asked."""
+    overrides: dict[str, dict] = {}
+    for item in config_files:
+        name, sep, path = item.partition("=")
+        if not sep or not name or not path:
+            raise ConfigError(f"--method-config expects NAME=YAML, got '{item}'")
+        if name not in names:
+            raise ConfigError(f"--method-config names '{name}', which is not in --methods")
+        data = config.load_yaml(path) or {}
+        if not isinstance(data, dict):
+            raise ConfigError(f"{path}: expected a mapping of config keys")
+        overrides[name] = data
+    runs = [runner.MethodRun(n, n, overrides.get(n, {})) for n in names]
+    if ablations:
+        base = overrides.get(ABLATED_METHOD, {})
+        runs += [runner.MethodRun(ablation_label(r), ABLATED_METHOD, {**base, **r.overrides}) for r in ABLATION_ROWS]
+        if ABLATED_METHOD not in names:
+            runs.append(runner.MethodRun(ABLATED_METHOD, ABLATED_METHOD, base))
+    return runs
+
+
+def _suite_specs(suite_path: Path) -> list:
+    try:
+        from generators.spec import load_suite
+    except ImportError as e:
+        raise ConfigError(f"the scene generator is not available ({e}); use --scenes with existing scenes") from None
+    return load_suite(suite_path).scene_specs()
+
+
+def suite_scene_names(suite_path: Path) -> list[str]:
+    """Names of a suite's scenes (no generation)."""
+    return [s.name for s in _suite_specs(suite_path)]
+
+
+def suite_scenes(suite_path: Path, data: Path) -> list[str]:
+    """Scene names of a suite, generating the ones missing or unfinished under ``data`` (lazy generator import)."""
+    specs = _suite_specs(suite_path)
+    from generators.spec import spec_hash
+
+    for spec in specs:
+        state = _scene_state(data / spec.name, spec_hash(spec))
+        if state == "complete":
+            continue
+        try:
+            from generators.generate import generate_scene
+        except ImportError as e:
+            raise ConfigError(f"scene '{spec.name}' is missing under {data} and the generator is not available ({e})") from None
+        print(f"generating scene {spec.name} ({state}) ...", flush=True)
+        generate_scene(spec, data, resume=state == "partial")
+    return [s.name for s in specs]
+
+
+def _scene_state(root: Path, expected_hash: str) -> str:
+    """'complete', 'partial' (same spec, frames missing: resume it) or 'missing' / 'other spec' (regenerate)."""
+    info_path = root / "scene.json"
+    if not info_path.is_file():
+        return "missing"
+    info = io.read_json(info_path)
+    if info.get("spec_hash") != expected_hash:
+        return "other spec"
+    counts = info.get("splits", {})
+    done = all(len(list((root / s / "pose").glob("*.txt"))) == n for s, n in counts.items())
+    return "complete" if counts and done else "partial"
+
+
+def run(args: argparse.Namespace) -> int:
+    if args.workers < 1:
+        raise ConfigError("--workers must be >= 1")
+    if args.timeout < 0:
+        raise ConfigError("--timeout must be >= 0 seconds")
+    splits = _csv(args.splits)
+    if args.robustness:
+        splits += [r.key for r in ROBUSTNESS_ROWS if r.key not in splits]
+    runner.import_plugins(args.plugin)
+    runs = method_runs(_csv(args.methods), args.method_config, args.ablations)
+    scenes = _csv(args.scenes) if args.scenes else suite_scenes(args.suite, args.data)
+    cfg = runner.EvalConfig(
+        data=args.data, out=args.out, scenes=scenes, runs=runs, splits=splits, track=args.track,
+        executor=args.executor, workers=args.workers, ray_address=args.ray_address, resume=args.resume,
+        timeout_s=args.timeout, plugins=args.plugin,
+    )  # fmt: skip
+    report = runner.evaluate(cfg)
+    queries = runner.load_run_queries(args.out)
+    print(f"maps: {report.maps_built} built, {report.maps_cached} cached; jobs: {report.jobs_run} run, "
+          f"{report.jobs_skipped} resumed; {report.wall_s:.1f} s")
+    if not queries.empty:
+        _, suite = tables.write_tables(args.out / "tables", queries, runner.load_map_records(args.out))
+        print(tables.compact(suite))
+        print(f"tables: {args.out / 'tables'}")
+    for err in report.errors:
+        print(f"error: {err}")
+    return 1 if report.errors else 0

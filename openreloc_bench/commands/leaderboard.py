@@ -1,0 +1,27 @@
+"""Render the leaderboard from one or more results directories (of ``eval``, or ``score``'s --out):
+a markdown table, a CSV, a static HTML page with sortable columns, and plots (cumulative
+translation / rotation error curves, per-scene recall bars, top-down ground truth vs estimates).
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from openreloc_bench.harness.leaderboard import write_leaderboard
+
+NAME = "leaderboard"
+HELP = "render the leaderboard (markdown, CSV, HTML, plots) from results"
+ORDER = 50
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("results", type=Path, nargs="+", metavar="RESULTS", help="results directories")
+    p.add_argument("--out", type=Path, default=Path("leaderboard"), help="output directory (default: leaderboard/)")
+
+
+def run(args: argparse.Namespace) -> int:
+    files = write_leaderboard(args.results, args.out)
+    print((args.out / "leaderboard.md").read_text().split("\n## ")[0].rstrip())
+    print(f"wrote {len(files)} files to {args.out}")
+    return 0

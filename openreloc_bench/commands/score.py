@@ -1,0 +1,52 @@
+"""Score pose files produced elsewhere (map-free style), so outside methods can enter the leaderboard.
+
+SUBMISSION_DIR holds one file per scene, ``<scene>.txt`` (names ``<split>/<frame id>``), or one per
+split, ``<scene>/<split>.txt``; each line ``name qw qx qy qz tx ty tz`` with (q, t) of T_cw.
+Queries without a line count as failures; duplicate names, NaNs and non-unit quaternions are errors.
+Tables (CSV + JSON) are written to --out, in the layout ``eval`` writes, for ``leaderboard``.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import pandas as pd
+
+from openreloc_bench.harness import score, tables
+from openreloc_bench.harness.runner import TRACKS
+
+NAME = "score"
+HELP = "score externally produced pose files against a dataset"
+ORDER = 45
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("submission", type=Path, metavar="SUBMISSION_DIR")
+    p.add_argument("--data", type=Path, required=True, help="dataset directory (one sub-directory per scene)")
+    p.add_argument("--suite", type=Path, help="score every scene of this suite (default: the scenes the submission covers)")
+    p.add_argument("--splits", default="query", help="comma-separated query splits to score")
+    p.add_argument("--method", help="name in the tables (default: the submission directory's name)")
+    p.add_argument("--track", default="predicted", choices=TRACKS, help="track the submission was produced in")
+    p.add_argument("--out", type=Path, help="where tables go (default: SUBMISSION_DIR/scores)")
+
+
+def run(args: argparse.Namespace) -> int:
+    if args.suite:
+        from openreloc_bench.commands.eval import suite_scene_names
+
+        scenes = suite_scene_names(args.suite)
+    else:
+        scenes = score.submission_scenes(args.submission, args.data)
+    splits = [s.strip() for s in args.splits.split(",") if s.strip()]
+    queries = score.score_submission(args.submission, args.data, scenes, splits,
+                                     args.method or args.submission.resolve().name, args.track)
+    out = args.out or args.submission / "scores"
+    maps = pd.DataFrame(columns=["config_hash", "scene", "map_mb", "mapping_time_s"])
+    _, suite = tables.write_tables(out / "tables", queries, maps)
+    missing = queries[queries["reason"] == "missing"]
+    if len(missing):
+        print(f"{len(missing)} of {len(queries)} queries have no estimate (counted as failures)")
+    print(tables.compact(suite))
+    print(f"tables: {out / 'tables'}")
+    return 0

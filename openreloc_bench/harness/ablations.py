@@ -1,0 +1,52 @@
+"""The paper's ablation rows and robustness settings: the single mapping from a table row to what runs.
+
+An ablation row is an OpenReLoc config override (the switches of ``OpenReLocConfig`` in
+``openreloc_bench/openreloc/method.py``); the harness runs each row as its own method variant,
+labelled ``openreloc+<key>``, so its results, map cache and config hash stay separate.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+ABLATED_METHOD = "openreloc"
+"""Registry name of the method the ablation rows switch parts of."""
+
+
+@dataclass(frozen=True)
+class Row:
+    """One row of a paper table."""
+
+    key: str
+    """Short id, used in labels (``openreloc+no_refine``) and file names."""
+    title: str
+    """The row title as printed in the paper."""
+    overrides: dict[str, Any] = field(default_factory=dict)
+    """Config overrides (ablations) -- unused for robustness rows."""
+
+
+ABLATION_ROWS: tuple[Row, ...] = (
+    Row("no_refine", "#1 w/o Refine Stage", {"no_refine": True}),
+    Row("no_coarse", "#2 w/o Coarse Stage", {"no_coarse": True}),
+    Row("no_scene_graph", "#3 w/o Scene Graph", {"no_scene_graph": True}),
+    Row("no_language", "#4 w/o Language Modality", {"no_language": True}),
+    Row("visibility_retrieval", "#5 w/o DIoU-based Retrieval", {"retrieval": "visibility"}),
+    Row("no_filtering", "#6 w/o Invalid Object Filtering", {"no_filtering": True}),
+)
+FULL_ROW = Row("full", "Ours Full")
+
+ROBUSTNESS_ROWS: tuple[Row, ...] = (
+    Row("query", "Original"),
+    Row("query_light1", "Lighting 1"),
+    Row("query_light2", "Lighting 2"),
+    Row("query_light3", "Lighting 3"),
+    Row("query_light4", "Lighting 4"),
+    Row("query_displaced", "Displaced objects"),
+)
+"""Robustness settings: each is a query split of the scene (key = split name)."""
+
+
+def ablation_label(row: Row) -> str:
+    """Result label of an ablation variant (the full method keeps its plain name)."""
+    return ABLATED_METHOD if row is FULL_ROW else f"{ABLATED_METHOD}+{row.key}"

@@ -1,0 +1,212 @@
+"""The leaderboard: markdown, CSV, a sortable static HTML page and plots from a results directory.
+
+Reads the per-query tables every ``eval`` / ``score`` run leaves (``tables/queries.csv`` under each
+results directory given), so several runs, including outside submissions, merge into one board.
+"""
+
+from __future__ import annotations
+
+import html
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")  # headless: no display on benchmark machines
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+
+from openreloc_bench.data import io  # noqa: E402
+from openreloc_bench.errors import DataError  # noqa: E402
+from openreloc_bench.harness.metrics import cumulative_curve  # noqa: E402
+from openreloc_bench.harness.tables import build_tables, paper_table  # noqa: E402
+
+BOARD_COLUMNS = {
+    "method": "Method", "track": "Track", "split": "Split", "n_scenes": "Scenes", "n_queries": "Queries",
+    "recall_100cm": "R@100cm [%]", "recall_50cm": "R@50cm [%]", "recall_25cm": "R@25cm [%]",
+    "recall_25cm_5deg": "R@25cm,5° [%]", "mte_50cm_m": "MTE@50 [m]", "mre_50cm_deg": "MRE@50 [°]",
+    "mte_25cm_m": "MTE@25 [m]", "mre_25cm_deg": "MRE@25 [°]", "median_te_m": "Median TE [m]",
+    "median_re_deg": "Median RE [°]", "map_mb": "Map [MB]", "mapping_time_s": "Mapping [s]",
+    "latency_median_s": "Latency med [ms]", "latency_p90_s": "Latency p90 [ms]", "git_commit": "Commit",
+}  # fmt: skip
+FORMATS = {"recall": "{:.1f}", "mte": "{:.3f}", "mre": "{:.2f}", "median_te": "{:.3f}", "median_re": "{:.2f}",
+           "map_mb": "{:.2f}", "mapping": "{:.1f}", "latency": "{:.1f}", "n_": "{:.0f}"}
+
+
+def load_queries(results: list[Path]) -> pd.DataFrame:
+    """Concatenated per-query tables of the given results directories."""
+    frames = []
+    for r in results:
+        path = r / "tables" / "queries.csv"
+        if not path.is_file():
+            raise DataError(r, "no tables/queries.csv (run 'openreloc-bench eval' or 'score' into it first)")
+        frames.append(pd.read_csv(path, dtype={"reason": str}))
+    q = pd.concat(frames, ignore_index=True)
+    q["reason"] = q["reason"].fillna("")
+    return q.drop_duplicates(["method", "track", "scene", "split", "query"], keep="last")
+
+
+def load_maps(results: list[Path]) -> pd.DataFrame:
+    from openreloc_bench.harness.runner import load_map_records
+
+    return pd.concat([load_map_records(r) for r in results], ignore_index=True)
+
+
+def _fmt(col: str, v: object) -> str:
+    if isinstance(v, str):
+        return v
+    if v is None or (isinstance(v, float) and np.isnan(v)):
+        return "-"
+    for prefix, f in FORMATS.items():
+        if col.startswith(prefix):
+            return f.format(v) if np.isfinite(v) else "∞"
+    return str(v)
+
+
+def board(suite: pd.DataFrame) -> pd.DataFrame:
+    """The leaderboard rows: best Recall@25cm first within each (track, split)."""
+    cols = [c for c in BOARD_COLUMNS if c in suite]
+    b = suite.sort_values(["track", "split", "recall_25cm", "recall_50cm"], ascending=[True, True, False, False])
+    b = b[cols].copy()
+    b[["latency_median_s", "latency_p90_s"]] *= 1000.0  # shown in ms
+    b["git_commit"] = b["git_commit"].astype(str).str.slice(0, 12)
+    return b
+
+
+def to_markdown(b: pd.DataFrame, scenes: pd.DataFrame) -> str:
+    head = [BOARD_COLUMNS[c] for c in b.columns]
+    lines = ["# openreloc-bench leaderboard", "", "Recall = share of all queries (failures count); "
+             "MTE/MRE = mean error of the queries within the threshold.", "",
+             "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    lines += ["| " + " | ".join(_fmt(c, r[c]) for c in b.columns) + " |" for _, r in b.iterrows()]
+    for (track, split), t in scenes.groupby(["track", "split"]):
+        rows = [(m, {"method": m}) for m in b[(b.track == track) & (b.split == split)]["method"]]
+        lines += ["", f"## Per scene: {split} ({track} track), each cell @50cm / @25cm", "",
+                  paper_table(t, rows, sorted(t["scene"].unique())).rstrip()]
+    return "\n".join(lines) + "\n"
+
+
+_SORT_JS = """
+document.querySelectorAll('table.sortable th').forEach((th, i) => th.addEventListener('click', () => {
+  const body = th.closest('table').tBodies[0], asc = th.dataset.dir !== 'asc';
+  th.closest('tr').querySelectorAll('th').forEach(h => delete h.dataset.dir); th.dataset.dir = asc ? 'asc' : 'desc';
+  const key = td => { const t = td.textContent.trim(), n = t === '∞' ? Infinity : parseFloat(t);
+                      return t === '-' ? NaN : (isNaN(n) ? t : n); };
+  [...body.rows].sort((a, b) => { const x = key(a.cells[i]), y = key(b.cells[i]);
+      if (Number.isNaN(x)) return 1; if (Number.isNaN(y)) return -1;
+      return (x > y ? 1 : x < y ? -1 : 0) * (asc ? 1 : -1); }).forEach(r => body.appendChild(r));
+}));
+"""
+
+
+def to_html(b: pd.DataFrame, plots: list[str]) -> str:
+    head = "".join(f"<th>{html.escape(BOARD_COLUMNS[c])}</th>" for c in b.columns)
+    rows = "".join("<tr>" + "".join(f"<td>{html.escape(_fmt(c, r[c]))}</td>" for c in b.columns) + "</tr>"
+                   for _, r in b.iterrows())
+    imgs = "".join(f'<figure><img src="{html.escape(p)}" alt="{html.escape(p)}"></figure>' for p in plots)
+    return f"""<!doctype html>
+<html lang="en"><head><meta charset="utf-8"><title>openreloc-bench leaderboard</title>
+<style>
+body {{ font-family: system-ui, sans-serif; margin: 2em; color: #222; }}
+table {{ border-collapse: collapse; font-size: 14px; }}
+th, td {{ border: 1px solid #ccc; padding: 4px 8px; text-align: right; }}
+th {{ background: #f0f0f0; cursor: pointer; user-select: none; }}
+th[data-dir=asc]::after {{ content: " ▲"; }} th[data-dir=desc]::after {{ content: " ▼"; }}
+td:first-child, td:nth-child(2), td:nth-child(3) {{ text-align: left; }}
+tr:nth-child(even) {{ background: #fafafa; }}
+img {{ max-width: 48%; float: left; margin: 1%; }}
+</style></head><body>
+<h1>openreloc-bench leaderboard</h1>
+<p>Recall = share of all queries (failed queries count). MTE/MRE = mean error of the queries within the
+threshold. Click a column header to sort.</p>
+<table class="sortable"><thead><tr>{head}</tr></thead><tbody>{rows}</tbody></table>
+{imgs}
+<script>{_SORT_JS}</script>
+</body></html>
+"""
+
+
+# --------------------------------------------------------------------------------------------
+# Plots
+# --------------------------------------------------------------------------------------------
+
+
+def plot_cumulative(q: pd.DataFrame, col: str, xmax: float, xlabel: str, path: Path) -> None:
+    """Share of queries under each error, one curve per (method, track) on the plain query split."""
+    grid = np.linspace(0, xmax, 400)
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for (method, track), g in q[q["split"] == "query"].groupby(["method", "track"]):
+        ax.plot(grid, cumulative_curve(g[col].to_numpy(), grid), label=f"{method} ({track})")
+    ax.set(xlabel=xlabel, ylabel="queries [%]", ylim=(0, 100), xlim=(0, xmax), title=f"Cumulative {xlabel}")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def plot_scene_recall(scenes: pd.DataFrame, path: Path) -> None:
+    """Recall@50cm (light) and @25cm (dark) per scene and method on the plain query split."""
+    s = scenes[scenes["split"] == "query"]
+    labels = sorted({f"{m} ({t})" for m, t in zip(s["method"], s["track"])})
+    names = sorted(s["scene"].unique())
+    x, width = np.arange(len(names)), 0.8 / max(len(labels), 1)
+    fig, ax = plt.subplots(figsize=(max(6, 1.2 * len(names) * max(1, len(labels) / 2)), 4))
+    cmap = plt.get_cmap("tab10")
+    for k, label in enumerate(labels):
+        g = s[[f"{m} ({t})" == label for m, t in zip(s["method"], s["track"])]].set_index("scene").reindex(names)
+        bars = ax.bar(x + k * width, g["recall_50cm"], width, color=cmap(k % 10), alpha=0.45)
+        ax.bar_label(bars, fmt="%.0f", fontsize=7)
+        ax.bar(x + k * width, g["recall_25cm"], width, color=cmap(k % 10), label=label)
+    ax.set_xticks(x + width * (len(labels) - 1) / 2, names, rotation=30, ha="right")
+    ax.set(ylabel="recall [%]  (light @50cm, dark @25cm)", ylim=(0, 100), title="Recall per scene")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def plot_topdown(q: pd.DataFrame, scene: str, path: Path) -> None:
+    """Ground-truth vs estimated camera positions (x, y), a line from each truth to its estimate."""
+    s = q[(q["scene"] == scene) & (q["split"] == "query")]
+    runs = sorted({(m, t) for m, t in zip(s["method"], s["track"])})
+    fig, axes = plt.subplots(1, len(runs), figsize=(4.2 * len(runs), 4.2), squeeze=False)
+    for ax, (method, track) in zip(axes[0], runs):
+        g = s[(s["method"] == method) & (s["track"] == track)]
+        ok = g[g["success"]]
+        ax.plot(np.c_[ok["gt_x"], ok["est_x"]].T, np.c_[ok["gt_y"], ok["est_y"]].T, color="0.6", lw=0.8)
+        ax.scatter(g["gt_x"], g["gt_y"], s=14, c="tab:green", label="ground truth")
+        ax.scatter(ok["est_x"], ok["est_y"], s=14, c="tab:red", marker="x", label="estimate")
+        failed = g[~g["success"]]
+        ax.scatter(failed["gt_x"], failed["gt_y"], s=40, facecolors="none", edgecolors="k", label="failed")
+        ax.set(title=f"{method} ({track})\n{len(ok)}/{len(g)} localized", xlabel="x [m]", ylabel="y [m]")
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.grid(alpha=0.3)
+    axes[0][0].legend(fontsize=7, loc="best")
+    fig.suptitle(f"{scene}: camera positions, top-down")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def write_leaderboard(results: list[Path], out: Path) -> list[Path]:
+    """Render everything into ``out``; returns the files written."""
+    q = load_queries(results)
+    scenes, suite = build_tables(q, load_maps(results))
+    b = board(suite)
+    out.mkdir(parents=True, exist_ok=True)
+    plots_dir = out / "plots"
+    plots_dir.mkdir(exist_ok=True)
+    plots = [plots_dir / "cumulative_translation.png", plots_dir / "cumulative_rotation.png",
+             plots_dir / "recall_per_scene.png"]
+    plot_cumulative(q, "t_err_m", 1.0, "translation error [m]", plots[0])
+    plot_cumulative(q, "r_err_deg", 20.0, "rotation error [°]", plots[1])
+    plot_scene_recall(scenes, plots[2])
+    for scene in sorted(q.loc[q["split"] == "query", "scene"].unique()):
+        plots.append(plots_dir / f"topdown_{scene}.png")
+        plot_topdown(q, scene, plots[-1])
+    io.atomic_write_text(out / "leaderboard.csv", suite.to_csv(index=False))
+    io.atomic_write_text(out / "leaderboard.md", to_markdown(b, scenes))
+    io.atomic_write_text(out / "index.html", to_html(b, [str(p.relative_to(out)) for p in plots]))
+    return [out / "leaderboard.md", out / "leaderboard.csv", out / "index.html", *plots]
+

@@ -1,0 +1,425 @@
+"""The evaluation runner: maps built once per (method config, scene), every query localized and scored.
+
+Work is split into picklable jobs so any executor can run them: one :class:`MapJob` per (method
+variant, scene), then one :class:`QueryJob` per (method variant, scene, split). A query job writes
+
+    RESULTS/runs/<label>/<track>/<scene>/<split>.txt           T_cw pose file (estimates only)
+                                         <split>.tum           TUM export (camera-to-world, for evo)
+                                         <split>.queries.csv   per-query errors, runtime, failure reason
+                                         <split>.done.json     provenance + timings, written LAST
+
+each atomically, the marker last: a job is finished exactly when its marker exists, so ``--resume``
+skips it and a killed run never leaves a file that a resumed run would trust half-written.
+
+A query runs in a child "query server" process when a per-query timeout is set, so a method that
+hangs can be abandoned (the child is killed and restarted for the next query); a method that raises
+fails that query with the exception as reason. Either way the run goes on.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib
+import logging
+import time
+from dataclasses import dataclass, field
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from tqdm import tqdm
+
+from openreloc_bench import geometry
+from openreloc_bench.data import io
+from openreloc_bench.data.results import write_results, write_tum
+from openreloc_bench.data.scene import Scene
+from openreloc_bench.data.types import SceneSequence
+from openreloc_bench.errors import ConfigError, DataError
+from openreloc_bench.harness import cache
+from openreloc_bench.harness.executors import make_executor, mp_context
+from openreloc_bench.harness.score import Outcome, score_split
+from openreloc_bench.methods import Failure, PoseEstimate, QueryFrame, Relocalizer, create_method, method_config
+
+log = logging.getLogger(__name__)
+
+TRACKS = ("oracle-mask", "predicted")
+
+
+@dataclass
+class MethodRun:
+    """One method variant to evaluate (a registered method plus config overrides)."""
+
+    label: str
+    """Name in the results and the leaderboard, e.g. ``openreloc`` or ``openreloc+no_refine``."""
+    method: str
+    """Registry name."""
+    overrides: dict[str, Any] = field(default_factory=dict)
+    """Config overrides passed to the method's constructor."""
+
+
+@dataclass
+class MapJob:
+    run: MethodRun
+    scene_dir: Path
+    map_dir: Path
+    spec_hash: str
+    provenance: dict[str, Any]
+    plugins: list[str]
+
+
+@dataclass
+class QueryJob:
+    run: MethodRun
+    scene_dir: Path
+    split: str
+    track: str
+    map_dir: Path
+    out_dir: Path
+    timeout_s: float
+    """Per-query limit in seconds; 0 = none (queries run in the job's own process)."""
+    provenance: dict[str, Any]
+    plugins: list[str]
+
+    @property
+    def marker(self) -> Path:
+        return self.out_dir / f"{self.split}.done.json"
+
+
+def import_plugins(modules: list[str]) -> None:
+    """Import modules that register methods with ``methods.register`` (needed again in every worker)."""
+    for name in modules:
+        try:
+            importlib.import_module(name)
+        except ImportError as e:
+            raise ConfigError(f"cannot import plugin module '{name}' ({e})") from None
+
+
+# --------------------------------------------------------------------------------------------
+# One query
+# --------------------------------------------------------------------------------------------
+
+
+def query_frame(seq: SceneSequence, i: int, track: str) -> QueryFrame:
+    """What the method sees: RGB + K, plus the dataset's instance masks in the oracle-mask track."""
+    f = seq[i]
+    return QueryFrame(f.name, f.color, f.K, f.instance if track == "oracle-mask" else None)
+
+
+def localize_one(method: Relocalizer, query: QueryFrame) -> Outcome:
+    """Call the method once, timing only its own call; any exception or bad answer is a failure."""
+    t0 = time.perf_counter()
+    try:
+        res = method.localize(query)
+    except Exception as e:  # noqa: BLE001 -- a method bug fails this query, not the run
+        return Outcome(query.name, None, time.perf_counter() - t0, f"raised {type(e).__name__}: {e}"[:300])
+    dt = time.perf_counter() - t0
+    if res is None:
+        return Outcome(query.name, None, dt, "no estimate")
+    if isinstance(res, Failure):
+        return Outcome(query.name, None, dt, res.reason or "failure")
+    if not isinstance(res, PoseEstimate):
+        return Outcome(query.name, None, dt, f"invalid return type {type(res).__name__}")
+    T = np.asarray(res.T_wc, dtype=np.float64)
+    if T.shape != (4, 4) or not geometry.is_rigid(T):
+        return Outcome(query.name, None, dt, "invalid pose (not a finite rigid 4x4 transform)")
+    return Outcome(query.name, T, dt)
+
+
+def _load_method(job: QueryJob) -> tuple[Relocalizer, SceneSequence, float]:
+    import_plugins(job.plugins)
+    method = create_method(job.run.method, **job.run.overrides)
+    t0 = time.perf_counter()
+    method.load_map(job.map_dir)
+    seq = Scene(job.scene_dir).sequence(job.split)
+    seq.load_instances = job.track == "oracle-mask"
+    return method, seq, time.perf_counter() - t0
+
+
+def _serve(conn: Any, job: QueryJob) -> None:
+    """Query-server child: load the map once, then answer query indices until told to stop."""
+    method, seq, load_s = _load_method(job)
+    conn.send(("ready", load_s))
+    while (i := conn.recv()) is not None:
+        conn.send(localize_one(method, query_frame(seq, i, job.track)))
+
+
+class QueryServer:
+    """A child process running the method, so a hung query can be abandoned by killing it."""
+
+    def __init__(self, job: QueryJob):
+        self.job = job
+        self.load_s = 0.0
+        self.restarts = -1
+        self._proc: Any = None
+        self._conn: Any = None
+
+    def _start(self) -> None:
+        ctx = mp_context()
+        self._conn, child = ctx.Pipe()
+        self._proc = ctx.Process(target=_serve, args=(child, self.job), daemon=True)
+        self._proc.start()
+        child.close()
+        self.restarts += 1
+        try:
+            _, load_s = self._conn.recv()
+        except EOFError:
+            self._proc.join()
+            raise RuntimeError(f"loading the map failed in the query worker (exit code {self._proc.exitcode})") from None
+        self.load_s += load_s
+
+    def ask(self, i: int, name: str) -> Outcome:
+        if self._proc is None:
+            self._start()
+        self._conn.send(i)
+        if self._conn.poll(self.job.timeout_s):
+            try:
+                return self._conn.recv()
+            except EOFError:
+                pass
+            code = self._stop()
+            return Outcome(name, None, float("nan"), f"worker died (exit code {code})")
+        self._stop()
+        return Outcome(name, None, self.job.timeout_s, f"timeout after {self.job.timeout_s:g} s")
+
+    def _stop(self) -> int | None:
+        self._proc.kill()
+        self._proc.join()
+        code = self._proc.exitcode
+        self._conn.close()
+        self._proc = self._conn = None
+        return code
+
+    def close(self) -> None:
+        if self._proc is not None:
+            self._conn.send(None)
+            self._proc.join(timeout=10)
+            if self._proc.is_alive():
+                self._stop()
+
+
+def _localize_all(job: QueryJob) -> tuple[SceneSequence, dict[str, Outcome], float]:
+    if job.timeout_s <= 0:
+        method, seq, load_s = _load_method(job)
+        return seq, {n: localize_one(method, query_frame(seq, i, job.track)) for i, n in enumerate(seq.names)}, load_s
+    seq = Scene(job.scene_dir).sequence(job.split)
+    server = QueryServer(job)
+    try:
+        outcomes = {n: server.ask(i, n) for i, n in enumerate(seq.names)}
+    finally:
+        server.close()
+    return seq, outcomes, server.load_s
+
+
+# --------------------------------------------------------------------------------------------
+# Jobs (top-level functions: executors pickle them)
+# --------------------------------------------------------------------------------------------
+
+
+def run_map_job(job: MapJob) -> dict[str, Any]:
+    """Build (or reuse) one map; returns its record, or ``{"error": ...}``."""
+    try:
+        import_plugins(job.plugins)
+        method = create_method(job.run.method, **job.run.overrides)
+        mapping = Scene(job.scene_dir).sequence("mapping")
+        return cache.build_map_cached(method, mapping, job.map_dir, job.spec_hash, job.provenance)
+    except Exception as e:  # noqa: BLE001 -- reported per job; other jobs go on
+        log.debug("map job failed", exc_info=True)
+        return {"error": f"{type(e).__name__}: {e}"}
+
+
+def run_query_job(job: QueryJob) -> dict[str, Any]:
+    """Localize and score every query of one split; returns the done-marker content or ``{"error": ...}``."""
+    try:
+        return _run_query_job(job)
+    except Exception as e:  # noqa: BLE001
+        log.debug("query job failed", exc_info=True)
+        return {"error": f"{type(e).__name__}: {e}"}
+
+
+def _run_query_job(job: QueryJob) -> dict[str, Any]:
+    job.marker.unlink(missing_ok=True)  # a recomputed job is unfinished until its new marker exists
+    started = datetime.now(timezone.utc).isoformat(timespec="seconds")
+    t0 = time.perf_counter()
+    seq, outcomes, load_s = _localize_all(job)
+    table = score_split(seq, outcomes)
+    poses = {n: o.T_wc for n, o in outcomes.items() if o.T_wc is not None}
+    prov = job.provenance
+    comments = [f"method {job.run.label} ({prov['config_hash']}), track {job.track}, scene {prov['scene']}, "
+                f"spec {prov['spec_hash']}, commit {prov['git_commit']}"]
+    job.out_dir.mkdir(parents=True, exist_ok=True)
+    write_results(job.out_dir / f"{job.split}.txt", poses, comments)
+    write_tum(job.out_dir / f"{job.split}.tum", poses)
+    io.atomic_write_text(job.out_dir / f"{job.split}.queries.csv", table.to_csv(index=False))
+    runtime = table["runtime_s"].to_numpy()
+    record = {
+        **prov,
+        "split": job.split,
+        "track": job.track,
+        "n_queries": len(table),
+        "n_success": int(table["success"].sum()),
+        "load_map_s": load_s,
+        "localize_s": float(np.nansum(runtime)),
+        "job_wall_s": time.perf_counter() - t0,
+        "timeout_s": job.timeout_s,
+        "started": started,
+        "finished": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+    }
+    io.write_json(job.marker, record)
+    return record
+
+
+# --------------------------------------------------------------------------------------------
+# Planning and running an evaluation
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass
+class EvalConfig:
+    """One ``openreloc-bench eval`` invocation."""
+
+    data: Path
+    """Directory holding one sub-directory per scene."""
+    out: Path
+    """Results directory (maps cache, runs, tables)."""
+    scenes: list[str]
+    """Scene names (directories under ``data``)."""
+    runs: list[MethodRun]
+    """Method variants to evaluate."""
+    splits: list[str] = field(default_factory=lambda: ["query"])
+    """Query splits to localize."""
+    track: str = "oracle-mask"
+    """``oracle-mask`` (queries carry the dataset's instance masks) or ``predicted`` (RGB only)."""
+    executor: str = "local"
+    """``local`` (process pool; inline with one worker) or ``ray``."""
+    workers: int = 1
+    """Parallel jobs."""
+    ray_address: str | None = None
+    """Existing Ray cluster (default: ``RAY_ADDRESS`` or a local instance)."""
+    resume: bool = False
+    """Skip jobs whose completion marker exists (otherwise every query job is recomputed)."""
+    timeout_s: float = 300.0
+    """Per-query limit in seconds (0 = no limit, queries run in the job's process)."""
+    plugins: list[str] = field(default_factory=list)
+    """Modules to import first (methods registered with ``methods.register``)."""
+
+
+@dataclass
+class EvalReport:
+    """What an evaluation did (for the CLI's summary and the tests)."""
+
+    maps_built: int = 0
+    maps_cached: int = 0
+    jobs_run: int = 0
+    jobs_skipped: int = 0
+    errors: list[str] = field(default_factory=list)
+    wall_s: float = 0.0
+
+
+def scene_spec_hash(scene: Scene) -> str:
+    """The generator's spec hash, or for converted real data a hash of its scene.json."""
+    return scene.spec_hash or "file:" + hashlib.sha256((scene.root / "scene.json").read_bytes()).hexdigest()[:12]
+
+
+def plan(cfg: EvalConfig) -> tuple[list[MapJob], list[QueryJob]]:
+    """Validate everything up front (methods, configs, scenes, splits, track) and list the jobs."""
+    if cfg.track not in TRACKS:
+        raise ConfigError(f"unknown track '{cfg.track}' (known: {', '.join(TRACKS)})")
+    import_plugins(cfg.plugins)
+    commit = cache.git_commit()
+    scenes = {}
+    for name in cfg.scenes:
+        scene = Scene(cfg.data / name)
+        avail = scene.splits()
+        for split in ["mapping", *cfg.splits]:
+            if split not in avail:
+                raise DataError(scene.root, f"scene has no split '{split}' (available: {', '.join(avail)})")
+        if cfg.track == "oracle-mask":
+            for split in cfg.splits:
+                if not (scene.root / split / "instance").is_dir():
+                    raise DataError(scene.root / split, "no instance masks: use --track predicted")
+        scenes[name] = scene
+    map_jobs, query_jobs = [], []
+    for run in cfg.runs:
+        try:
+            mcfg = method_config(create_method(run.method, **run.overrides))
+        except TypeError as e:  # plugins that take **kwargs loosely fail this way on a bad key
+            raise ConfigError(f"method '{run.label}': invalid config ({e})") from None
+        chash = cache.config_hash(mcfg)
+        for name, scene in scenes.items():
+            spec = scene_spec_hash(scene)
+            map_dir = cfg.out / "maps" / run.method / chash / name
+            prov = {"method": run.label, "registry_name": run.method, "method_config": mcfg,
+                    "config_hash": chash, "scene": name, "spec_hash": spec, "git_commit": commit}
+            map_jobs.append(MapJob(run, scene.root, map_dir, spec, prov, cfg.plugins))
+            for split in cfg.splits:
+                out_dir = cfg.out / "runs" / run.label / cfg.track / name
+                query_jobs.append(QueryJob(run, scene.root, split, cfg.track, map_dir, out_dir,
+                                           cfg.timeout_s, prov, cfg.plugins))
+    return map_jobs, query_jobs
+
+
+def _clean_stray_temps(root: Path) -> None:
+    """Temp files of writes a killed run never renamed (atomic writes: never a result file)."""
+    for p in root.rglob(".*.tmp"):
+        p.unlink(missing_ok=True)
+
+
+def evaluate(cfg: EvalConfig) -> EvalReport:
+    """Run an evaluation; per-job errors are collected in the report, the run goes on."""
+    t0 = time.perf_counter()
+    report = EvalReport()
+    map_jobs, query_jobs = plan(cfg)
+    if cfg.out.exists():
+        _clean_stray_temps(cfg.out)
+    # several variants may share a map (same method config): build each distinct map dir once
+    unique: dict[Path, MapJob] = {}
+    for j in map_jobs:
+        unique.setdefault(j.map_dir, j)
+    todo_maps = [j for j in unique.values() if cache.read_map_record(j.map_dir, j.spec_hash) is None]
+    report.maps_cached = len(unique) - len(todo_maps)
+    executor = make_executor(cfg.executor, cfg.workers, cfg.ray_address)
+    failed_maps: dict[Path, str] = {}
+    for job, rec in tqdm(executor.map(run_map_job, todo_maps), total=len(todo_maps), desc="maps", disable=not todo_maps):
+        if "error" in rec:
+            failed_maps[job.map_dir] = rec["error"]
+            report.errors.append(f"map {job.run.label}/{job.scene_dir.name}: {rec['error']}")
+        else:
+            report.maps_built += 1
+    todo = []
+    for j in query_jobs:
+        if j.map_dir in failed_maps:
+            continue
+        if cfg.resume and j.marker.is_file():
+            report.jobs_skipped += 1
+        else:
+            todo.append(j)
+    for job, rec in tqdm(executor.map(run_query_job, todo), total=len(todo), desc="queries", disable=not todo):
+        if "error" in rec:
+            report.errors.append(f"{job.run.label}/{job.scene_dir.name}/{job.split}: {rec['error']}")
+        else:
+            report.jobs_run += 1
+    report.wall_s = time.perf_counter() - t0
+    return report
+
+
+def load_run_queries(out: Path) -> pd.DataFrame:
+    """Every finished job's per-query rows under ``out/runs``, with the job's provenance columns."""
+    frames = []
+    for marker in sorted((out / "runs").glob("*/*/*/*.done.json")):
+        rec = io.read_json(marker)
+        df = pd.read_csv(marker.with_name(f"{rec['split']}.queries.csv"), dtype={"reason": str})
+        df["reason"] = df["reason"].fillna("")
+        for key in ("git_commit", "spec_hash", "config_hash", "split", "scene", "track", "method"):
+            df.insert(0, key, rec[key])
+        frames.append(df)
+    return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
+
+
+def load_map_records(out: Path) -> pd.DataFrame:
+    """Mapping time and map size of every cached map, one row per (config hash, scene)."""
+    rows = [{"config_hash": p.parent.name, "scene": p.name[: -len(".done.json")],
+             "map_mb": r["map_bytes"] / 1e6, "mapping_time_s": r["mapping_time_s"]}
+            for p in sorted((out / "maps").glob("*/*/*.done.json")) for r in [io.read_json(p)]]
+    return pd.DataFrame(rows, columns=["config_hash", "scene", "map_mb", "mapping_time_s"])

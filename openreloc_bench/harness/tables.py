@@ -1,0 +1,131 @@
+"""Metric tables (pandas) from per-query rows: per scene, per suite, and the paper's layouts.
+
+The per-suite table pools all queries of all scenes (each query weighs the same), the way a
+recall over a dataset is read; ``n_scenes`` says how many scenes a row covers, so rows of methods
+run on different scene sets are not mistaken for comparable.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from openreloc_bench.data import io
+from openreloc_bench.harness.ablations import ABLATION_ROWS, FULL_ROW, ROBUSTNESS_ROWS, ablation_label
+from openreloc_bench.harness.metrics import METRIC_COLUMNS, summarize
+
+SCENE_KEYS = ["method", "track", "scene", "split"]
+SUITE_KEYS = ["method", "track", "split"]
+EXTRA_COLUMNS = ("n_scenes", "map_mb", "mapping_time_s", "latency_median_s", "latency_p90_s")
+COMPACT_COLUMNS = {
+    "recall_100cm": "R@1m%", "recall_50cm": "R@50cm%", "recall_25cm": "R@25cm%", "recall_25cm_5deg": "R@25cm,5°%",
+    "mte_25cm_m": "MTE@25[m]", "mre_25cm_deg": "MRE@25[°]", "median_te_m": "med TE[m]", "median_re_deg": "med RE[°]",
+    "map_mb": "map MB", "latency_median_ms": "lat[ms]",
+}  # fmt: skip
+
+
+def metric_table(queries: pd.DataFrame, keys: list[str], maps: pd.DataFrame) -> pd.DataFrame:
+    """One row per group of ``keys``: the paper's metrics, map size/time and query latency."""
+    rows = []
+    for key, g in queries.groupby(keys, sort=True):
+        row: dict[str, Any] = dict(zip(keys, key))
+        row.update(summarize(g["t_err_m"].to_numpy(), g["r_err_deg"].to_numpy()))
+        row["n_queries"], row["n_failed"] = int(row["n_queries"]), int(row["n_failed"])
+        scene_maps = maps.merge(g[["config_hash", "scene"]].drop_duplicates(), on=["config_hash", "scene"])
+        row["n_scenes"] = int(g["scene"].nunique())
+        row["map_mb"] = float(scene_maps["map_mb"].mean()) if len(scene_maps) else math.nan
+        row["mapping_time_s"] = float(scene_maps["mapping_time_s"].mean()) if len(scene_maps) else math.nan
+        lat = g["runtime_s"].to_numpy(dtype=float)
+        lat = lat[np.isfinite(lat)]
+        row["latency_median_s"] = float(np.median(lat)) if lat.size else math.nan
+        row["latency_p90_s"] = float(np.percentile(lat, 90)) if lat.size else math.nan
+        for col in ("config_hash", "spec_hash", "git_commit"):
+            row[col] = ",".join(sorted(set(map(str, g[col]))))
+        rows.append(row)
+    cols = [*keys, *METRIC_COLUMNS, *EXTRA_COLUMNS, "config_hash", "spec_hash", "git_commit"]
+    return pd.DataFrame(rows, columns=cols)
+
+
+def write_frame(df: pd.DataFrame, path_stem: Path) -> None:
+    """CSV + JSON (records; infinities as strings so the JSON stays standard)."""
+    io.atomic_write_text(path_stem.with_suffix(".csv"), df.to_csv(index=False))
+    records = json.loads(df.replace([np.inf, -np.inf], ["inf", "-inf"]).to_json(orient="records"))
+    io.write_json(path_stem.with_suffix(".json"), records)
+
+
+def build_tables(queries: pd.DataFrame, maps: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame]:
+    return metric_table(queries, SCENE_KEYS, maps), metric_table(queries, SUITE_KEYS, maps)
+
+
+def write_tables(tables_dir: Path, queries: pd.DataFrame, maps: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """queries / scenes / suite tables (CSV + JSON) and, where the runs exist, the paper's tables (markdown)."""
+    scenes, suite = build_tables(queries, maps)
+    write_frame(queries, tables_dir / "queries")
+    write_frame(scenes, tables_dir / "scenes")
+    write_frame(suite, tables_dir / "suite")
+    for name, text in paper_tables(scenes).items():
+        io.atomic_write_text(tables_dir / f"{name}.md", text)
+    return scenes, suite
+
+
+def compact(suite: pd.DataFrame) -> str:
+    """The short table ``eval`` prints at the end."""
+    suite = suite.assign(latency_median_ms=1000.0 * suite["latency_median_s"])
+    cols = [c for c in COMPACT_COLUMNS if c in suite]
+    view = suite[[*SUITE_KEYS, *cols]].rename(columns=COMPACT_COLUMNS)
+    return view.to_string(index=False, float_format=lambda v: f"{v:.2f}", na_rep="-")
+
+
+# --------------------------------------------------------------------------------------------
+# The paper's layout: rows = settings, "@50cm / @25cm" cells, scenes as columns
+# --------------------------------------------------------------------------------------------
+
+_PAPER_METRICS = (("Recall[%]", "recall_{}", "{:.0f}"), ("MTE[m]", "mte_{}_m", "{:.2f}"), ("MRE[°]", "mre_{}_deg", "{:.1f}"))
+
+
+def _cell(row: pd.Series | None, col: str, fmt: str) -> str:
+    vals = []
+    for thr in ("50cm", "25cm"):
+        v = row[col.format(thr)] if row is not None else math.nan
+        vals.append("-" if v is None or not np.isfinite(v) else fmt.format(v))
+    return " / ".join(vals)
+
+
+def paper_table(scenes: pd.DataFrame, rows: list[tuple[str, dict[str, str]]], scene_names: list[str]) -> str:
+    """Markdown table: one line per (title, column filter), cells '@50cm / @25cm' per metric and scene."""
+    header = ["Setting"] + [f"{m} {s}" for m, _, _ in _PAPER_METRICS for s in scene_names]
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    for title, where in rows:
+        sel = scenes
+        for k, v in where.items():
+            sel = sel[sel[k] == v]
+        by_scene = {r["scene"]: r for _, r in sel.iterrows()}
+        cells = [_cell(by_scene.get(s), col, fmt) for _, col, fmt in _PAPER_METRICS for s in scene_names]
+        lines.append("| " + " | ".join([title, *cells]) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def paper_tables(scenes: pd.DataFrame) -> dict[str, str]:
+    """The ablation table and one robustness table per (method, track), where their runs exist."""
+    out: dict[str, str] = {}
+    if scenes.empty:
+        return out
+    for track, t in scenes.groupby("track"):
+        names = sorted(t["scene"].unique())
+        labels = set(t["method"])
+        abl = [(r.title, {"method": ablation_label(r), "split": "query"}) for r in (*ABLATION_ROWS, FULL_ROW)
+               if ablation_label(r) in labels]
+        if len(abl) > 1:
+            out[f"ablations_{track}"] = f"Ablations ({track} track), each cell @50cm / @25cm\n\n" + paper_table(t, abl, names)
+        for method, m in t.groupby("method"):
+            rob = [(r.title, {"split": r.key}) for r in ROBUSTNESS_ROWS if r.key in set(m["split"])]
+            if len(rob) > 1:
+                out[f"robustness_{method}_{track}"] = (
+                    f"Robustness of {method} ({track} track), each cell @50cm / @25cm\n\n" + paper_table(m, rob, names)
+                )
+    return out

@@ -1,0 +1,54 @@
+"""``openreloc-bench leaderboard``: markdown, CSV, sortable HTML and plots from eval and score results."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "harness"))
+from harness_test_methods import make_scene, perturb  # noqa: E402
+
+from openreloc_bench.cli import main  # noqa: E402
+from openreloc_bench.data.results import write_results  # noqa: E402
+from openreloc_bench.data.scene import Scene  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def results(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    root = tmp_path_factory.mktemp("lb")
+    data = root / "data"
+    for i, name in enumerate(["s1", "s2"]):
+        make_scene(data, name, n_query=5, seed=20 + i)
+    assert main(["eval", "--scenes", "s1,s2", "--data", str(data), "--out", str(root / "res"), "--timeout", "0",
+                 "--methods", "test-oracle,nearest-frame", "--plugin", "harness_test_methods"]) == 0
+    seq = Scene(data / "s1").sequence("query")
+    write_results(root / "sub" / "s1.txt", {n: perturb(T, n, 0.4, 8.0) for n, T in zip(seq.names, seq.poses)})
+    assert main(["score", str(root / "sub"), "--data", str(data), "--method", "outside"]) == 0
+    return root, data
+
+
+def test_leaderboard_merges_eval_and_score_results(results: tuple[Path, Path], capsys) -> None:
+    root, _ = results
+    out = root / "board"
+    assert main(["leaderboard", str(root / "res"), str(root / "sub" / "scores"), "--out", str(out)]) == 0
+    assert "| test-oracle |" in capsys.readouterr().out
+    board = pd.read_csv(out / "leaderboard.csv")
+    assert set(board["method"]) == {"test-oracle", "nearest-frame", "outside"}
+    md = (out / "leaderboard.md").read_text()
+    lines = [ln for ln in md.splitlines() if ln.startswith("| test-oracle") or ln.startswith("| outside")]
+    assert lines[0].startswith("| test-oracle")  # sorted by Recall@25cm within (track, split)
+    assert "## Per scene: query" in md and "| outside | 100 / 0 |" in md
+    page = (out / "index.html").read_text()
+    assert "<table class=\"sortable\">" in page and "addEventListener('click'" in page
+    assert page.count("<tr>") == len(board) + 1
+    for name in ("cumulative_translation", "cumulative_rotation", "recall_per_scene", "topdown_s1", "topdown_s2"):
+        png = out / "plots" / f"{name}.png"
+        assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and f"plots/{name}.png" in page
+
+
+def test_leaderboard_of_an_empty_directory_is_a_clear_error(tmp_path: Path, capsys) -> None:
+    assert main(["leaderboard", str(tmp_path), "--out", str(tmp_path / "b")]) == 2
+    assert "no tables/queries.csv" in capsys.readouterr().err

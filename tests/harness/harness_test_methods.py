@@ -1,0 +1,106 @@
+"""Test-only methods and tiny scenes for the harness tests.
+
+Importable by module name (``--plugin harness_test_methods``) so spawned workers register the same
+methods as the test process.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+import zlib
+from dataclasses import asdict, dataclass, fields
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from openreloc_bench import geometry, methods
+from openreloc_bench.data import io
+from openreloc_bench.data.scene import SceneWriter
+from openreloc_bench.data.types import SceneSequence
+from openreloc_bench.methods import Failure, PoseEstimate, QueryFrame
+
+
+@dataclass
+class OracleConfig:
+    """Config of :class:`NoisyOracle`."""
+
+    noise_m: float = 0.05
+    """Translation noise (metres, fixed length, direction seeded by the query name)."""
+    noise_deg: float = 1.0
+    """Rotation noise (degrees, fixed angle, axis seeded by the query name)."""
+    fail_on: str = ""
+    """Query name answered with an explicit Failure."""
+    raise_on: str = ""
+    """Query name on which localize raises."""
+    hang_on: str = ""
+    """Query name on which localize sleeps for an hour."""
+    delay_s: float = 0.0
+    """Sleep per query (to make runs slow enough to kill)."""
+    expect_track: str = ""
+    """If set, raise when a query comes from another track."""
+
+
+class NoisyOracle:
+    """Reads the query's ground truth from disk and perturbs it by a known amount."""
+
+    name = "test-oracle"
+
+    def __init__(self, **overrides: Any):
+        self.config = OracleConfig(**overrides)
+        self._root: Path | None = None
+
+    def build_map(self, mapping: SceneSequence, map_dir: Path) -> None:
+        root = mapping.records[0].color_path.parents[2]
+        io.write_json(Path(map_dir) / "oracle.json", {"scene_root": str(root), "config": asdict(self.config)})
+
+    def load_map(self, map_dir: Path) -> None:
+        self._root = Path(io.read_json(Path(map_dir) / "oracle.json")["scene_root"])
+
+    def localize(self, query: QueryFrame) -> PoseEstimate | Failure:
+        c = self.config
+        if c.delay_s:
+            time.sleep(c.delay_s)
+        if c.expect_track and query.track != c.expect_track:
+            raise RuntimeError(f"got a {query.track} query")
+        if query.name == c.raise_on:
+            raise RuntimeError("boom")
+        if query.name == c.hang_on:
+            time.sleep(3600)
+        if query.name == c.fail_on:
+            return Failure("no objects recognised")
+        split, fid = query.name.split("/")
+        T = io.read_matrix(self._root / split / "pose" / f"{fid}.txt")
+        return PoseEstimate(perturb(T, query.name, c.noise_m, c.noise_deg))
+
+
+def perturb(T: np.ndarray, name: str, noise_m: float, noise_deg: float) -> np.ndarray:
+    """T moved by exactly ``noise_m`` and rotated by exactly ``noise_deg`` (directions seeded by name)."""
+    rng = np.random.default_rng(zlib.crc32(name.encode()))
+    d, axis = rng.normal(size=3), rng.normal(size=3)
+    out = T.copy()
+    out[:3, 3] += noise_m * d / np.linalg.norm(d)
+    out[:3, :3] = T[:3, :3] @ Rotation.from_rotvec(np.radians(noise_deg) * axis / np.linalg.norm(axis)).as_matrix()
+    return out
+
+
+methods.register("test-oracle", NoisyOracle)
+
+
+def make_scene(root: Path, name: str, n_map: int = 4, n_query: int = 3, splits: tuple[str, ...] = ("query",),
+               seed: int = 0) -> Path:
+    """A tiny scene (32x24 random images with depth, instances and random poses in a 4 m room)."""
+    rng = np.random.default_rng(seed)
+    w = SceneWriter(root / name)
+    K = geometry.intrinsics_from_fov(32, 24, 60.0)
+    w.write_scene_info({"name": name, "spec_hash": f"hash-{name}-{seed}", "seed": seed})
+    for split, n in [("mapping", n_map), *[(s, n_query) for s in splits]]:
+        w.write_intrinsics(split, K)
+        for i in range(n):
+            eye = np.array([rng.uniform(0, 4), rng.uniform(0, 4), 1.5])
+            target = eye + np.array([np.cos(a := rng.uniform(0, 2 * np.pi)), np.sin(a), -0.2])
+            w.write_frame(split, i, rng.integers(0, 255, (24, 32, 3), dtype=np.uint8),
+                          np.full((24, 32), 2.0), rng.integers(0, 4, (24, 32)), geometry.look_at(eye, target))
+    return root / name

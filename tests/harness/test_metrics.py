@@ -1,0 +1,79 @@
+"""Metrics: hand-computed values and a cross-check of the errors against evo's APE."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from openreloc_bench import geometry
+from openreloc_bench.harness.metrics import METRIC_COLUMNS, cumulative_curve, summarize
+
+INF = math.inf
+
+
+def test_summarize_hand_computed() -> None:
+    # errors: 0.1 m/1 deg, 0.3 m/6 deg, 0.6 m/2 deg, one failure
+    m = summarize(np.array([0.1, 0.3, 0.6, INF]), np.array([1.0, 6.0, 2.0, INF]))
+    assert set(m) == set(METRIC_COLUMNS)
+    assert (m["n_queries"], m["n_failed"]) == (4, 1)
+    assert m["recall_100cm"] == 75.0 and m["recall_50cm"] == 50.0 and m["recall_25cm"] == 25.0
+    assert m["recall_25cm_5deg"] == 25.0
+    assert m["mte_50cm_m"] == pytest.approx(0.2) and m["mre_50cm_deg"] == pytest.approx(3.5)
+    assert m["mte_25cm_m"] == pytest.approx(0.1) and m["mre_25cm_deg"] == pytest.approx(1.0)
+    assert m["median_te_m"] == pytest.approx(0.45) and m["median_re_deg"] == pytest.approx(4.0)
+
+
+def test_combined_recall_needs_both_thresholds_and_thresholds_are_strict() -> None:
+    m = summarize(np.array([0.1, 0.2, 0.25, 0.5]), np.array([6.0, 4.9, 1.0, 1.0]))
+    assert m["recall_25cm_5deg"] == 25.0  # only the second: first has 6 deg, third is not < 25 cm
+    assert m["recall_25cm"] == 50.0 and m["recall_50cm"] == 75.0
+
+
+@pytest.mark.parametrize("t, r", [([INF, INF], [INF, INF]), ([math.nan, 0.1], [1.0, math.nan])])
+def test_failures_count_in_denominators_and_accuracy_is_nan_without_successes(t: list, r: list) -> None:
+    m = summarize(np.array(t), np.array(r))
+    assert m["n_failed"] == 2 and m["recall_100cm"] == 0.0
+    assert math.isnan(m["mte_50cm_m"]) and math.isnan(m["mre_25cm_deg"])
+    assert m["median_te_m"] == INF
+
+
+def test_empty_and_mismatched() -> None:
+    assert math.isnan(summarize(np.array([]), np.array([]))["recall_50cm"])
+    with pytest.raises(ValueError):
+        summarize(np.zeros(2), np.zeros(3))
+
+
+def test_cumulative_curve() -> None:
+    curve = cumulative_curve(np.array([0.1, 0.3, INF, 0.3]), np.array([0.0, 0.1, 0.3, 10.0]))
+    assert curve.tolist() == [0.0, 25.0, 75.0, 75.0]
+
+
+def test_errors_match_evo_ape_from_tum_exports(tmp_path) -> None:
+    """Our translation/rotation errors equal evo's APE (no alignment) on the exported TUM files."""
+    pytest.importorskip("evo")
+    from evo.core import metrics as evo_metrics
+    from evo.tools import file_interface
+
+    from openreloc_bench.data.results import write_tum
+
+    rng = np.random.default_rng(3)
+    names = [f"query/{i:06d}" for i in range(20)]
+    gt, est = {}, {}
+    for n in names:
+        R = geometry.quat_to_rotmat(geometry.quat_canonical(rng.normal(size=4)))
+        gt[n] = geometry.make_pose(R, rng.uniform(-5, 5, 3))
+        dR = geometry.quat_to_rotmat(geometry.quat_canonical(np.r_[1.0, rng.normal(scale=0.3, size=3)]))
+        est[n] = geometry.make_pose(R @ dR, gt[n][:3, 3] + rng.normal(scale=0.4, size=3))
+    write_tum(tmp_path / "gt.tum", gt)
+    write_tum(tmp_path / "est.tum", est)
+    ref = file_interface.read_tum_trajectory_file(str(tmp_path / "gt.tum"))
+    traj = file_interface.read_tum_trajectory_file(str(tmp_path / "est.tum"))
+    ours_t, ours_r = geometry.pose_errors(np.stack([gt[n] for n in names]), np.stack([est[n] for n in names]))
+    for relation, ours in [(evo_metrics.PoseRelation.translation_part, ours_t),
+                           (evo_metrics.PoseRelation.rotation_angle_deg, ours_r)]:
+        ape = evo_metrics.APE(relation)
+        ape.process_data((ref, traj))
+        np.testing.assert_allclose(ape.error, ours, atol=1e-6)
+    assert summarize(ours_t, ours_r)["median_te_m"] == pytest.approx(np.median(ours_t))

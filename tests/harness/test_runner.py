@@ -1,0 +1,117 @@
+"""The evaluation runner on tiny scenes: outputs, map cache, failures, timeouts, tracks, bad input."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from openreloc_bench.data import io
+from openreloc_bench.data.results import read_results, read_tum_trajectory
+from openreloc_bench.errors import ConfigError, DataError
+from openreloc_bench.harness import runner, tables
+from openreloc_bench.harness.runner import EvalConfig, MethodRun
+
+PLUGIN = ["harness_test_methods"]
+
+
+def cfg(data: Path, out: Path, runs: list[MethodRun], **kw) -> EvalConfig:
+    kw.setdefault("timeout_s", 0.0)
+    return EvalConfig(data=data, out=out, scenes=["sA", "sB"], runs=runs, plugins=PLUGIN, **kw)
+
+
+def test_eval_writes_poses_tum_tables_and_provenance(data_dir: Path, tmp_path: Path) -> None:
+    runs = [MethodRun("test-oracle", "test-oracle", {"noise_m": 0.1, "noise_deg": 2.0}),
+            MethodRun("nearest-frame", "nearest-frame")]
+    report = runner.evaluate(cfg(data_dir, tmp_path, runs, splits=["query", "query_light1"]))
+    assert report.errors == [] and report.maps_built == 4 and report.jobs_run == 8
+    d = tmp_path / "runs" / "test-oracle" / "oracle-mask" / "sA"
+    poses = read_results(d / "query.txt")
+    assert sorted(poses) == [f"query/{i:06d}" for i in range(3)]
+    stamps, tum = read_tum_trajectory(d / "query.tum")
+    np.testing.assert_allclose(tum, np.stack([poses[n] for n in sorted(poses)]), atol=1e-6)
+    marker = io.read_json(d / "query.done.json")
+    assert marker["method_config"] == {"name": "test-oracle", "config": {
+        "noise_m": 0.1, "noise_deg": 2.0, "fail_on": "", "raise_on": "", "hang_on": "", "delay_s": 0.0,
+        "expect_track": ""}}
+    assert marker["track"] == "oracle-mask" and marker["spec_hash"] == "hash-sA-1" and marker["git_commit"]
+    q = runner.load_run_queries(tmp_path)
+    assert len(q) == 2 * 2 * 2 * 3
+    oracle = q[q["method"] == "test-oracle"]
+    np.testing.assert_allclose(oracle["t_err_m"], 0.1, atol=1e-6)
+    np.testing.assert_allclose(oracle["r_err_deg"], 2.0, atol=1e-4)
+    scenes, suite = tables.write_tables(tmp_path / "tables", q, runner.load_map_records(tmp_path))
+    row = suite[(suite.method == "test-oracle") & (suite.split == "query")].iloc[0]
+    assert row.recall_25cm == 100.0 and row.n_scenes == 2 and row.n_queries == 6
+    assert row.mte_25cm_m == pytest.approx(0.1) and row.mre_25cm_deg == pytest.approx(2.0, abs=1e-4)
+    assert row.map_mb > 0 and row.mapping_time_s >= 0 and row.latency_p90_s >= row.latency_median_s
+    for name in ("queries", "scenes", "suite"):
+        assert (tmp_path / "tables" / f"{name}.csv").is_file() and (tmp_path / "tables" / f"{name}.json").is_file()
+    assert len(scenes) == 8
+    robustness = (tmp_path / "tables" / "robustness_test-oracle_oracle-mask.md").read_text()
+    assert "| Original | 100 / 100 | 100 / 100 | 0.10 / 0.10 |" in robustness and "Lighting 1" in robustness
+
+
+def test_maps_are_cached_by_config_and_spec(data_dir: Path, tmp_path: Path) -> None:
+    run = MethodRun("test-oracle", "test-oracle", {"noise_m": 0.1})
+    assert runner.evaluate(cfg(data_dir, tmp_path, [run])).maps_built == 2
+    again = runner.evaluate(cfg(data_dir, tmp_path, [run]))
+    assert (again.maps_built, again.maps_cached) == (0, 2)
+    other = runner.evaluate(cfg(data_dir, tmp_path, [MethodRun("o2", "test-oracle", {"noise_m": 0.2})]))
+    assert other.maps_built == 2
+    assert len(list((tmp_path / "maps" / "test-oracle").iterdir())) == 2  # two config hashes
+
+
+def test_raise_failure_and_hang_fail_one_query_each_and_the_run_goes_on(data_dir: Path, tmp_path: Path) -> None:
+    run = MethodRun("bad", "test-oracle", {"raise_on": "query/000000", "fail_on": "query/000001",
+                                           "hang_on": "query/000002"})
+    report = runner.evaluate(cfg(data_dir, tmp_path, [run], timeout_s=2.0))
+    assert report.errors == [] and report.jobs_run == 2
+    q = runner.load_run_queries(tmp_path).set_index(["scene", "query"])
+    assert q.loc[("sA", "query/000000"), "reason"] == "raised RuntimeError: boom"
+    assert q.loc[("sA", "query/000001"), "reason"] == "no objects recognised"
+    assert q.loc[("sA", "query/000002"), "reason"] == "timeout after 2 s"
+    assert not q["success"].any() and np.isinf(q["t_err_m"]).all()
+    assert len(read_results(tmp_path / "runs" / "bad" / "oracle-mask" / "sA" / "query.txt")) == 0
+
+
+def test_predicted_track_hides_instances(data_dir: Path, tmp_path: Path) -> None:
+    ok = runner.evaluate(cfg(data_dir, tmp_path, [MethodRun("p", "test-oracle", {"expect_track": "predicted"})],
+                             track="predicted"))
+    assert ok.errors == []
+    q = runner.load_run_queries(tmp_path)
+    assert q["success"].all() and set(q["track"]) == {"predicted"}
+    runner.evaluate(cfg(data_dir, tmp_path, [MethodRun("m", "test-oracle", {"expect_track": "predicted"})]))
+    q = runner.load_run_queries(tmp_path)
+    assert q[q.method == "m"]["reason"].str.contains("got a oracle-mask query").all()
+
+
+def test_local_pool_gives_the_same_results_as_inline(data_dir: Path, tmp_path: Path) -> None:
+    runs = [MethodRun("test-oracle", "test-oracle"), MethodRun("nearest-frame", "nearest-frame")]
+    frames = []
+    for name, workers in [("inline", 1), ("pool", 2)]:
+        assert runner.evaluate(cfg(data_dir, tmp_path / name, runs, workers=workers)).errors == []
+        frames.append(runner.load_run_queries(tmp_path / name).drop(columns="runtime_s"))
+    pd.testing.assert_frame_equal(frames[0], frames[1])
+
+
+@pytest.mark.parametrize(
+    "change, error, match",
+    [
+        (dict(runs=[MethodRun("x", "no-such-method")]), ConfigError, "unknown method 'no-such-method'"),
+        (dict(scenes=["sA", "missing"]), DataError, "scene directory not found"),
+        (dict(splits=["query_light4"]), DataError, "no split 'query_light4'"),
+        (dict(track="oracle"), ConfigError, "unknown track"),
+        (dict(runs=[MethodRun("x", "test-oracle", {"nope": 1})]), ConfigError, "invalid config.*nope"),
+    ],
+)
+def test_bad_input_is_rejected_before_any_work(data_dir: Path, tmp_path: Path, change: dict, error: type,
+                                               match: str) -> None:
+    c = cfg(data_dir, tmp_path, [MethodRun("test-oracle", "test-oracle")])
+    for k, v in change.items():
+        setattr(c, k, v)
+    with pytest.raises(error, match=match):
+        runner.evaluate(c)
+    assert not (tmp_path / "maps").exists()

@@ -1,0 +1,49 @@
+"""Per-stage latency and recall of a method on one scene split (the paper's efficiency table).
+
+  .venv/bin/python benchmarks/bench_localize.py --map MAPDIR --scene DIR/<scene> [--split query]
+      [--method openreloc] [--track oracle-mask] [--set key=value ...] [--threads 1]
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from openreloc_bench.commands.localize import localize_split, summary
+from openreloc_bench.commands.map import parse_overrides
+from openreloc_bench.data.scene import Scene
+from openreloc_bench.methods import create_method
+from openreloc_bench.openreloc.method import STAGES
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--map", type=Path, required=True)
+    p.add_argument("--scene", type=Path, required=True)
+    p.add_argument("--split", default="query")
+    p.add_argument("--method", default="openreloc")
+    p.add_argument("--track", default="oracle-mask", choices=("oracle-mask", "predicted"))
+    p.add_argument("--set", dest="overrides", action="append", default=[])
+    p.add_argument("--threads", type=int, default=1, help="torch threads (the 2-core target machine: 1)")
+    args = p.parse_args()
+    torch.set_num_threads(args.threads)
+    method = create_method(args.method, **parse_overrides(args.overrides))
+    seq = Scene(args.scene).sequence(args.split)
+    method.load_map(args.map)
+    records = localize_split(method, seq, args.track)
+    print(f"{args.method} on {args.scene.name}/{args.split} ({args.track}, {len(records)} queries)")
+    print(f"{'stage':<10} {'median s':>9} {'mean s':>9}")
+    for stage in (*STAGES, "total"):
+        vals = [r.diagnostics.get("timings", {}).get(stage) for r in records]
+        vals = [v for v in vals if v is not None]
+        if vals:
+            print(f"{stage:<10} {np.median(vals):9.4f} {np.mean(vals):9.4f}")
+    for line in summary(records, dict(zip(seq.names, seq.poses))):
+        print(line)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,133 @@
+"""Localize every frame of a query split against a method's map and write a result file.
+
+The result file is the benchmark format (``name qw qx qy qz tx ty tz`` of T_cw). A query the method
+cannot place (a failure, or an exception inside the method) is left out of the file and counted in
+the summary; it never stops the run. ``--diagnostics`` writes one JSON line per query (the method's
+diagnostics: matches, timings, explanation...). When the split has ground-truth poses the summary
+also prints recall@50/25 cm; the method never sees them.
+
+  openreloc-bench localize --method openreloc --map maps/smoke --scene data/smoke-room \\
+      --split query --out poses.txt
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import time
+from collections import Counter
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from tqdm import tqdm
+
+from openreloc_bench import geometry
+from openreloc_bench.commands.map import add_method_arguments, method_overrides
+from openreloc_bench.data import io
+from openreloc_bench.data.results import write_results
+from openreloc_bench.data.scene import QUERY_SPLITS, Scene
+from openreloc_bench.data.types import SceneSequence
+from openreloc_bench.methods import Failure, PoseEstimate, QueryFrame, Relocalizer, create_method
+
+NAME = "localize"
+HELP = "localize a query split against a map and write poses"
+ORDER = 30
+TRACKS = ("oracle-mask", "predicted")
+log = logging.getLogger(__name__)
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    add_method_arguments(p)
+    p.add_argument("--map", type=Path, required=True, help="map directory (from `openreloc-bench map`)")
+    p.add_argument("--scene", type=Path, required=True, help="scene directory")
+    p.add_argument("--split", default="query", choices=QUERY_SPLITS, help="query split (default: query)")
+    p.add_argument("--out", type=Path, required=True, help="result file to write")
+    p.add_argument("--track", default="oracle-mask", choices=TRACKS,
+                   help="oracle-mask: queries carry the dataset instance masks; predicted: RGB only")
+    p.add_argument("--diagnostics", type=Path, help="also write per-query diagnostics as JSON lines")
+
+
+@dataclass
+class QueryRecord:
+    """What happened to one query."""
+
+    name: str
+    T_wc: np.ndarray | None
+    seconds: float
+    reason: str | None = None
+    diagnostics: dict[str, Any] = field(default_factory=dict)
+
+
+def localize_split(method: Relocalizer, seq: SceneSequence, track: str, progress: bool = True) -> list[QueryRecord]:
+    """Localize every frame of ``seq``; failures and method exceptions become records with a reason."""
+    records = []
+    for i in tqdm(range(len(seq)), desc=f"localize {seq.split}", disable=not progress, leave=False):
+        f = seq[i]
+        query = QueryFrame(f.name, f.color, f.K, f.instance if track == "oracle-mask" else None)
+        t0 = time.perf_counter()
+        try:
+            res = method.localize(query)
+        except Exception as e:  # noqa: BLE001 -- one query's bug must not stop the split
+            log.debug("query %s raised", f.name, exc_info=True)
+            res = Failure(f"raised {type(e).__name__}: {e}"[:300])
+        dt = time.perf_counter() - t0
+        if isinstance(res, PoseEstimate) and geometry.is_rigid(np.asarray(res.T_wc, dtype=np.float64)):
+            records.append(QueryRecord(f.name, np.asarray(res.T_wc, dtype=np.float64), dt, None, res.diagnostics))
+        elif isinstance(res, PoseEstimate):
+            records.append(QueryRecord(f.name, None, dt, "invalid pose (not a finite rigid transform)", res.diagnostics))
+        elif isinstance(res, Failure):
+            records.append(QueryRecord(f.name, None, dt, res.reason, res.diagnostics))
+        else:
+            records.append(QueryRecord(f.name, None, dt, "no estimate"))
+    return records
+
+
+def summary(records: list[QueryRecord], gt: dict[str, np.ndarray] | None = None) -> list[str]:
+    """Printable lines: localized share, failure reasons, latency, and recall when ground truth exists."""
+    n = len(records)
+    ok = [r for r in records if r.T_wc is not None]
+    lines = [f"localized {len(ok)}/{n} queries; median latency {np.median([r.seconds for r in records]) if n else 0:.3f} s"]
+    for reason, count in Counter(r.reason for r in records if r.T_wc is None).most_common():
+        lines.append(f"  failed x{count}: {reason}")
+    if gt and n:
+        te = np.array([geometry.translation_error(gt[r.name], r.T_wc) if r.T_wc is not None else np.inf for r in records])
+        re = np.array([geometry.rotation_error(gt[r.name], r.T_wc) if r.T_wc is not None else np.inf for r in records])
+        lines.append(f"vs ground truth: recall@50cm {np.mean(te < 0.5):.1%}, @25cm {np.mean(te < 0.25):.1%}, "
+                     f"(25cm, 5deg) {np.mean((te < 0.25) & (re < 5)):.1%}; median error "
+                     f"{np.median(te) * 100:.1f} cm / {np.median(re):.2f} deg")
+    return lines
+
+
+def _json_safe(v: Any) -> Any:
+    if isinstance(v, dict):
+        return {str(k): _json_safe(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [_json_safe(x) for x in v]
+    if isinstance(v, np.ndarray):
+        return v.tolist()
+    if isinstance(v, np.generic):
+        return v.item()
+    return v
+
+
+def run(args: argparse.Namespace) -> int:
+    method = create_method(args.method, **method_overrides(args))
+    seq = Scene(args.scene).sequence(args.split)
+    method.load_map(args.map)
+    records = localize_split(method, seq, args.track)
+    poses = {r.name: r.T_wc for r in records if r.T_wc is not None}
+    write_results(args.out, poses, [f"method {args.method}", f"track {args.track}", f"split {args.split}",
+                                    f"localized {len(poses)}/{len(records)}"])
+    if args.diagnostics:
+        lines = [json.dumps(_json_safe({"name": r.name, "ok": r.T_wc is not None, "reason": r.reason,
+                                        "seconds": round(r.seconds, 4), "diagnostics": r.diagnostics}), sort_keys=True)
+                 for r in records]
+        io.atomic_write_text(args.diagnostics, "\n".join(lines) + "\n")
+    gt = dict(zip(seq.names, seq.poses))
+    for line in summary(records, gt):
+        print(line)
+    print(f"poses written to {args.out}")
+    return 0

@@ -1,0 +1,259 @@
+"""The OpenReLoc relocalizer: map suite -> association -> coarse prior -> dual-path 2D ICP.
+
+``OpenReLoc(**overrides)`` takes :class:`OpenReLocConfig` fields (nested sections as dicts), so the
+harness, the CLI's ``--set`` and YAML configs all build it the same way. Every ablation of the
+paper's table is a field: ``no_refine``, ``no_coarse``, ``no_scene_graph``, ``no_language``,
+``retrieval: visibility`` and ``no_filtering`` (the keys of ``harness/ablations.py``).
+
+A query the method cannot place returns :class:`~openreloc_bench.methods.Failure` with a reason
+(too few objects, nothing unique, no co-visible reference frame, diverging refinement, an image of
+another size than the map's camera) -- never an exception.
+"""
+
+from __future__ import annotations
+
+import time
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Iterator, Literal
+
+import numpy as np
+
+from openreloc_bench import config as cfglib
+from openreloc_bench import geometry
+from openreloc_bench.data.types import SceneSequence
+from openreloc_bench.methods import Failure, PoseEstimate, QueryFrame
+from openreloc_bench.openreloc.association import AssociationConfig, Match, QueryObject, associate, uniqueness, unique_mask
+from openreloc_bench.openreloc.build import MappingConfig, build_object_map
+from openreloc_bench.openreloc.descriptors import pad_box
+from openreloc_bench.openreloc.explain import PlacedObject, explain_pose
+from openreloc_bench.openreloc.map import ObjectMap
+from openreloc_bench.openreloc.refine import RefineConfig, RefineTarget, refine_pose
+from openreloc_bench.openreloc.retrieval import retrieve_reference
+from openreloc_bench.vision.base import ObjectMask, create_describer, create_encoder, create_segmenter
+
+STAGES = ("segment", "encode", "describe", "associate", "retrieve", "refine")
+
+
+@dataclass
+class OpenReLocConfig:
+    """Every choice of the OpenReLoc method (recorded with each result)."""
+
+    encoder: str = "offline"
+    """Image/text encoder used to build maps (queries always use the encoder recorded in the map)."""
+    encoder_options: dict[str, Any] = field(default_factory=dict)
+    """Keyword arguments of the encoder (e.g. ``weights`` or ``model``)."""
+    describer: str = "offline"
+    """Describer giving each query object a phrase (the paper's LLM); ``openai`` for an HTTP model."""
+    describer_options: dict[str, Any] = field(default_factory=dict)
+    """Keyword arguments of the describer (it is always given the map's encoder)."""
+    segmenter: str = "graph"
+    """Segmenter of the predicted track (the oracle-mask track always uses the dataset masks, ``gt``)."""
+    segmenter_options: dict[str, Any] = field(default_factory=dict)
+    """Keyword arguments of the predicted-track segmenter."""
+    min_mask_area: int = 150
+    """Query objects with fewer pixels are ignored (too small to crop, embed or align)."""
+    max_objects: int = 12
+    """At most this many query objects (the most unique) are matched, which bounds latency."""
+    min_objects: int = 3
+    """Fewer detected (or unique) objects than this: the query fails (the pose is under-constrained)."""
+    min_matches: int = 3
+    """Fewer associated landmarks than this: the query fails."""
+    association: AssociationConfig = field(default_factory=AssociationConfig)
+    """Landmark association settings."""
+    refinement: RefineConfig = field(default_factory=RefineConfig)
+    """Dual-path 2D ICP settings."""
+    mapping: MappingConfig = field(default_factory=MappingConfig)
+    """Map building settings (used by ``build_map``)."""
+    no_refine: bool = False
+    """Ablation #1: return the coarse prior (the reference frame's pose) without ICP refinement."""
+    no_coarse: bool = False
+    """Ablation #2: refine from an uninformed start (map centroid, looking at the matched objects)."""
+    no_scene_graph: bool = False
+    """Ablation #3: ambiguous objects keep their visual top-1 instead of sub-graph matching."""
+    no_language: bool = False
+    """Ablation #4: drop the describer/text modality (every object takes its visual top-1)."""
+    retrieval: Literal["diou", "visibility"] = "diou"
+    """Coarse-prior ranking of co-visible reference frames: DIoU of boxes (paper) or, ablation #5, landmark visibility."""
+    no_filtering: bool = False
+    """Ablation #6: keep matches to landmarks that invalid-object filtering removed (walls, floors...);
+    normally a query object whose best landmark is an invalid one is dropped."""
+    seed: int = 0
+    """Seed of the refinement's point/pixel subsampling."""
+
+
+class OpenReLoc:
+    """The OpenReLoc relocalizer (registered as ``openreloc``)."""
+
+    name = "openreloc"
+
+    def __init__(self, **overrides: Any):
+        self.config: OpenReLocConfig = cfglib.from_dict(OpenReLocConfig, overrides, "openreloc")
+        self.map: ObjectMap | None = None
+
+    # ------------------------------------------------------------------------------------ map
+
+    def build_map(self, mapping: SceneSequence, map_dir: Path) -> None:
+        cfg = self.config
+        encoder = create_encoder(cfg.encoder, **cfg.encoder_options)
+        segmenter = create_segmenter(cfg.segmenter, **cfg.segmenter_options) if cfg.mapping.instances_from == "segmenter" else None
+        build_object_map(mapping, cfg.mapping, encoder, segmenter).save(map_dir)
+
+    def load_map(self, map_dir: Path) -> None:
+        cfg = self.config
+        self.map = m = ObjectMap.load(map_dir)
+        enc = dict(m.encoder)
+        self.encoder = create_encoder(enc.pop("name"), **enc)
+        self.describer = None
+        if not cfg.no_language:
+            # every describer embeds its phrase choice (or its fallback) in the map's encoder space
+            self.describer = create_describer(cfg.describer, encoder=self.encoder, **cfg.describer_options)
+        self.gt_segmenter = create_segmenter("gt", min_area=cfg.min_mask_area)
+        self.segmenter = create_segmenter(cfg.segmenter, **cfg.segmenter_options)
+        self.ids = sorted(m.landmarks)
+        self.descriptors = m.descriptor_matrix(self.ids)
+        self.crop_padding = float(m.config.get("descriptors", {}).get("padding", 0.1))
+
+    # ------------------------------------------------------------------------------------ query
+
+    def localize(self, query: QueryFrame) -> PoseEstimate | Failure:
+        if self.map is None:
+            raise RuntimeError("load_map() must be called before localize()")
+        timings: dict[str, float] = {}
+        diag: dict[str, Any] = {"track": query.track, "timings": timings}
+        t_start = time.perf_counter()
+        try:
+            result = self._localize(query, diag, timings)
+        finally:
+            timings["total"] = round(time.perf_counter() - t_start, 4)
+        return result
+
+    def _localize(self, query: QueryFrame, diag: dict[str, Any], timings: dict[str, float]) -> PoseEstimate | Failure:
+        cfg, m = self.config, self.map
+        assert m is not None
+        stage = _stage_timer(timings)
+        rgb = np.asarray(query.color)
+        if rgb.ndim != 3 or rgb.shape[:2] != (m.height, m.width):
+            return Failure(f"query image is {rgb.shape[1::-1] if rgb.ndim >= 2 else rgb.shape}, the map's camera is "
+                           f"{m.width}x{m.height}", diag)
+        K = np.asarray(query.K, dtype=np.float64)
+        if K.shape != (3, 3) or not (0 <= K[0, 2] <= m.width and 0 <= K[1, 2] <= m.height) or K[0, 0] <= 0:
+            return Failure("query intrinsics do not fit the image size (principal point outside the image)", diag)
+
+        with stage("segment"):
+            if query.instance is not None:
+                masks = self.gt_segmenter.segment(rgb, query.instance)
+            else:
+                masks = self.segmenter.segment(rgb)
+            masks = [mk for mk in masks if int(mk.mask.sum()) >= cfg.min_mask_area]
+        diag["detected"] = len(masks)
+        if len(masks) < cfg.min_objects:
+            return Failure(f"{len(masks)} object(s) detected, need at least {cfg.min_objects}", diag)
+
+        with stage("encode"):
+            crops = [rgb[y0:y1, x0:x1] for x0, y0, x1, y1 in
+                     (pad_box(mk.box, self.crop_padding, m.width, m.height) for mk in masks)]
+            visual = self.encoder.encode_images(crops)
+            gammas = uniqueness(visual, self.descriptors)
+            keep = np.flatnonzero(unique_mask(gammas, cfg.association))
+            keep = keep[np.argsort(-gammas[keep], kind="stable")][: cfg.max_objects]
+        objects = [_query_object(masks[i], visual[i], float(gammas[i])) for i in sorted(keep.tolist())]
+        diag["unique"] = len(objects)
+        if len(objects) < cfg.min_objects:
+            return Failure(f"{len(objects)} of {len(masks)} object(s) unique enough to match, need {cfg.min_objects}", diag)
+
+        with stage("describe"):
+            if self.describer is not None:
+                phrases = [self.describer.describe(rgb, o.mask) for o in objects]
+                for o, p, e in zip(objects, phrases, self.encoder.encode_texts(phrases)):
+                    o.phrase, o.text = p, e
+
+        with stage("associate"):
+            graph = None if cfg.no_scene_graph else m.graph
+            # association sees every landmark; filtered ones (walls, floor) only veto the query
+            # objects that look most like them, instead of forcing those onto a valid look-alike
+            invalid = frozenset() if cfg.no_filtering else frozenset(set(self.ids) - set(m.valid_ids()))
+            matches = associate(objects, self.ids, self.descriptors, graph, cfg.association, invalid)
+        diag["matches"] = [_match_diag(mt, objects, m) for mt in matches]
+        if len(matches) < cfg.min_matches:
+            return Failure(f"{len(matches)} landmark(s) associated, need at least {cfg.min_matches}", diag)
+
+        with stage("retrieve"):
+            boxes = {mt.landmark: objects[mt.query].box.astype(np.float64) for mt in matches}
+            ret = retrieve_reference(boxes, m.reference_frames, cfg.retrieval)
+        if ret is None:
+            return Failure("no reference frame shares a matched landmark", diag)
+        diag["reference_frame"] = {"index": ret.frame.index, "shared": ret.shared, "score": round(ret.score, 4),
+                                   "ranking": ret.ranking}
+        T_prior = self._uninformed_start([mt.landmark for mt in matches]) if cfg.no_coarse else ret.frame.T_wc
+        diag["prior_T_wc"] = np.round(T_prior, 6).tolist()
+
+        T = T_prior
+        if not cfg.no_refine:
+            with stage("refine"):
+                targets = [RefineTarget(mt.landmark, m.landmarks[mt.landmark].points, objects[mt.query].mask) for mt in matches]
+                res = refine_pose(T_prior, K, targets, cfg.refinement, seed=cfg.seed)
+            diag["refine"] = {
+                "iterations": res.iterations, "initial_loss": _num(res.initial_loss), "loss": _num(res.loss),
+                "object_losses": {str(k): _num(v) for k, v in res.object_losses.items()}, "outliers": res.outliers,
+            }
+            if res.reason is not None:
+                return Failure(res.reason, diag)
+            T = res.T_wc
+
+        placed = [PlacedObject(m.landmarks[mt.landmark].center, m.landmarks[mt.landmark].box_min,
+                               m.landmarks[mt.landmark].box_max, m.landmarks[mt.landmark].category,
+                               objects[mt.query].phrase) for mt in matches]
+        diag["explanation"] = explain_pose(T, placed)
+        return PoseEstimate(T, diag)
+
+    def _uninformed_start(self, matched: list[int]) -> np.ndarray:
+        """The no-coarse ablation's start: at the centroid of all landmarks, at the mean height of the
+        reference cameras, looking at the matched landmarks' centroid."""
+        m = self.map
+        assert m is not None
+        centres = np.stack([lm.center for lm in m.landmarks.values()])
+        eye = centres.mean(axis=0)
+        if m.reference_frames:
+            eye[2] = float(np.mean([f.T_wc[2, 3] for f in m.reference_frames]))
+        target = np.stack([m.landmarks[i].center for i in matched]).mean(axis=0)
+        if np.linalg.norm(target - eye) < 1e-3:
+            target = eye + np.array([1.0, 0.0, 0.0])
+        return geometry.look_at(eye, target)
+
+
+def _query_object(mk: ObjectMask, visual: np.ndarray, gamma: float) -> QueryObject:
+    return QueryObject(mask=mk.mask, box=np.asarray(mk.box, dtype=np.float64), visual=visual,
+                       instance_id=mk.instance_id, uniqueness=gamma)
+
+
+def _match_diag(mt: Match, objects: list[QueryObject], m: ObjectMap) -> dict[str, Any]:
+    o = objects[mt.query]
+    return {
+        "landmark": mt.landmark,
+        "category": m.landmarks[mt.landmark].category,
+        "query_instance": o.instance_id,
+        "phrase": o.phrase,
+        "how": mt.how,
+        "visual_sim": round(mt.visual_sim, 4),
+        "text_sim": None if mt.text_sim is None else round(mt.text_sim, 4),
+        "graph_score": None if mt.graph_score is None else round(mt.graph_score, 4),
+        "uniqueness": round(o.uniqueness, 6),
+    }
+
+
+def _num(v: float) -> float | None:
+    return round(float(v), 4) if np.isfinite(v) else None
+
+
+def _stage_timer(timings: dict[str, float]) -> Any:
+    @contextmanager
+    def stage(name: str) -> Iterator[None]:
+        t = time.perf_counter()
+        try:
+            yield
+        finally:
+            timings[name] = round(time.perf_counter() - t, 4)
+
+    return stage

@@ -1,4 +1,6 @@
-"""Mapping benchmark: time per step, map size (MB, MB/landmark), 3D instance P/R, frames kept.
+"""Mapping benchmark: time per step, map size (MB, MB/landmark), 3D instance P/R (against the
+scene's object boxes), frames kept, and what invalid-object filtering removes: the reference-frame
+frequency of every ground-truth category, structural (wall/floor/ceiling...) vs furniture.
 
     python benchmarks/bench_mapping.py /tmp/orb-data/smoke-room [more scenes] [--encoder offline]
         [--segmenter noisy-gt] [--out results.json]
@@ -36,6 +38,10 @@ def bench_scene(scene_dir: Path, encoder_name: str, encoder_cfg: dict, segmenter
             m.save(Path(d))
             size = map_size_bytes(Path(d))
         n = max(len(m.landmarks), 1)
+        objects = Scene(scene_dir).objects
+        structural = {o.category for o in objects.values() if o.structural}
+        freq = {int(i): f for i, f in m.stats["reference_frequency"].items()}
+        by_cat = sorted(((round(f, 2), m.landmarks[i].category or "?") for i, f in freq.items()), reverse=True)
         q = m.stats["instance_quality"] or {}
         rows.append({
             "scene": scene_dir.name, "instances": source, "frames": len(seq),
@@ -44,6 +50,10 @@ def bench_scene(scene_dir: Path, encoder_name: str, encoder_cfg: dict, segmenter
             "precision@0.5": q.get("precision"), "recall@0.5": q.get("recall"),
             "map_MB": size / 1e6, "MB_per_landmark": size / 1e6 / n, "time_s": wall,
             "timings_s": m.stats["timings_s"], "invalid_categories": m.stats["invalid_categories"],
+            "frequency_by_category": by_cat,
+            "max_furniture_frequency": max((f for f, c in by_cat if c not in structural), default=0.0),
+            "structural_frequencies": [f for f, c in by_cat if c in structural],
+            "instance_reference": q.get("reference"),
         })
     return rows
 
@@ -66,6 +76,8 @@ def main() -> None:
               f"P/R {r['precision@0.5']:.2f}/{r['recall@0.5']:.2f} map {r['map_MB']:.3f} MB "
               f"({r['MB_per_landmark'] * 1000:.1f} kB/landmark) time {r['time_s']:.1f}s [{steps}] "
               f"filtered: {', '.join(r['invalid_categories'])}")
+        print(f"    reference-frame frequency: structural {r['structural_frequencies']} | "
+              f"furniture max {r['max_furniture_frequency']:.2f} | top: {r['frequency_by_category'][:8]}")
     if args.out:
         args.out.write_text(json.dumps(rows, indent=1))
 

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from boxworld import MeanColorEncoder, NoisyMaskSegmenter, boxworld_sequence
+from tests.openreloc.boxworld import MeanColorEncoder, NoisyMaskSegmenter, boxworld_sequence
 
 from openreloc_bench.cli import main
 from openreloc_bench.errors import ConfigError
@@ -29,7 +29,8 @@ def test_oracle_map(seq, tmp_path: Path) -> None:
     assert not m.landmarks[1].valid  # the floor is in every reference frame
     assert all(m.landmarks[i].valid for i in (11, 12, 14))
     assert 0 < m.stats["reference_frames"] < len(seq)
-    assert m.stats["instance_quality"]["recall"] == 1.0
+    q = m.stats["instance_quality"]
+    assert q["reference"] == "object boxes" and q["recall"] >= 0.85 and q["precision"] >= 0.85, q
     assert set(m.stats["timings_s"]) >= {"fusion", "instances", "reference_frames", "descriptors", "graph"}
     for lm in m.landmarks.values():
         assert np.all(lm.points >= lm.box_min - 1e-5) and np.all(lm.points <= lm.box_max + 1e-5)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from boxworld import MeanColorEncoder, boxworld_sequence
+from tests.openreloc.boxworld import MeanColorEncoder, boxworld_sequence
 
 from openreloc_bench.openreloc.descriptors import DescriptorConfig, compute_descriptors, pad_box, top_views
 from openreloc_bench.openreloc.reference_frames import Sightings

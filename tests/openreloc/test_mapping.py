@@ -7,10 +7,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from boxworld import ROOM, NoisyMaskSegmenter, boxworld_sequence
+from tests.openreloc.boxworld import ROOM, NoisyMaskSegmenter, boxworld_sequence
 
 from openreloc_bench.data import io
-from openreloc_bench.data.scene import Scene
+from openreloc_bench.data.scene import ObjectInfo, Scene
 from openreloc_bench.errors import DataError
 from openreloc_bench.openreloc import mapping as M
 
@@ -68,9 +68,71 @@ def test_observation_discards_occluded_points(room: tuple) -> None:
 def test_clustering_of_noisy_masks_recovers_instances(room: tuple) -> None:
     _, rec, obs = room
     gt = M.instance_sets(M.lift_by_voting(len(rec.points), obs, M.VotingConfig()), 20)
-    pred = M.instance_sets(M.lift_by_clustering(len(rec.points), obs, M.ClusteringConfig()), 20)
+    pred = M.instance_sets(M.lift_by_clustering(rec.points, obs, M.ClusteringConfig()), 20)
     q = M.instance_quality(pred, gt)
     assert q["recall"] >= 0.85 and q["precision"] >= 0.75, q
+
+
+def test_frustum_culling_sees_exactly_what_full_projection_sees(room: tuple) -> None:
+    seq, rec, obs = room
+    full = M.observe(seq, rec.points, rec.usable, M.ObservationConfig(cell_size=0.0), progress=False)
+    fine = M.observe(seq, rec.points, rec.usable, M.ObservationConfig(cell_size=0.3), progress=False)
+    for a, b, c in zip(full, fine, obs):
+        np.testing.assert_array_equal(a.point_idx, b.point_idx)
+        np.testing.assert_array_equal(a.point_idx, c.point_idx)  # the fixture's default cell size
+        np.testing.assert_array_equal(a.uv, b.uv)
+
+
+def test_fusion_of_subsampled_depth_stays_on_the_surfaces(room: tuple) -> None:
+    seq, rec, _ = room
+    half = M.fuse_tsdf(seq, M.FusionConfig(voxel_size=0.05, max_fusion_width=64), progress=False)
+    assert len(half.points) > 0.8 * len(rec.points)
+    assert np.median(box_distance(half.points)) < 0.02
+
+
+def test_undersegmented_masks_are_dropped(room: tuple) -> None:
+    """A mask spanning two objects of similar size in one frame is split in the other frames, so it
+    is dropped instead of fusing the two objects into one cluster."""
+    _, rec, obs = room
+    vote = M.lift_by_voting(len(rec.points), obs, M.VotingConfig())
+    o, pair = obs[4], (12, 2)  # frame 4 sees the sofa and the wall behind it about equally (~500 points each)
+    assert 0.6 < (vote[o.point_idx] == 12).sum() / (vote[o.point_idx] == 2).sum() < 1.6
+    merged = np.flatnonzero(np.isin(vote[o.point_idx], pair)).astype(np.int32)
+    obs2 = [M.FrameObservation(x.index, x.point_idx, x.uv, x.gt_ids, list(x.masks)) for x in obs]
+    others = [m for m in o.masks if not np.isin(np.bincount(vote[o.point_idx[m]]).argmax(), pair)]
+    obs2[obs.index(o)].masks = others + [merged]  # the two objects' masks replaced by one
+    cfg = M.ClusteringConfig()
+    masks = [(f, m) for f, ob in enumerate(obs2) for m in ob.masks if len(m) >= cfg.min_mask_points]
+    Mx = M._incidence(np.concatenate([np.full(len(m), k) for k, (_, m) in enumerate(masks)]),
+                      np.concatenate([obs2[f].point_idx[m] for f, m in masks]), (len(masks), len(rec.points)))
+    _, _, keep = M._mask_frame_stats(Mx, np.array([f for f, _ in masks]), len(obs2), cfg)
+    k = next(k for k, (_, m) in enumerate(masks) if m is merged)
+    assert not keep[k] and keep.mean() > 0.8
+    labels = M.lift_by_clustering(rec.points, obs2, cfg)
+    assert M.instance_quality(M.instance_sets(labels, 20), M.instance_sets(vote, 20))["recall"] >= 0.85
+
+
+def test_box_point_labels_prefer_the_smallest_box_and_absorb_surface_noise() -> None:
+    objects = {
+        1: ObjectInfo(1, "floor", aabb=[[-2, -2, -0.1], [2, 2, 0.0]], structural=True),
+        2: ObjectInfo(2, "table", aabb=[[0, 0, 0], [1, 1, 0.8]]),
+        3: ObjectInfo(3, "lamp", aabb=[[0.4, 0.4, 0.8], [0.6, 0.6, 1.2]]),
+    }
+    pts = np.array([
+        [-1, -1, 0.01],   # floor with surface noise above it: only within the margin of the floor
+        [0.5, 0.5, 0.79],  # table top
+        [0.5, 0.5, 0.81],  # lamp base (inside the table box's margin too: the strict lamp box wins)
+        [0.5, 0.5, -0.005],  # floor under the table: strictly inside the floor only
+        [3, 3, 3],        # nowhere
+    ])
+    np.testing.assert_array_equal(M.box_point_labels(pts, objects, 0.03), [1, 2, 3, 1, 0])
+
+
+def test_instance_sets_groups_labels() -> None:
+    sets = M.instance_sets(np.array([0, 3, 1, 3, 3, 1, 0, 7]), 2)
+    assert set(sets) == {1, 3}
+    np.testing.assert_array_equal(sets[3], [1, 3, 4])
+    np.testing.assert_array_equal(sets[1], [2, 5])
 
 
 def test_instance_quality_counts_iou_matches() -> None:

@@ -110,7 +110,7 @@ def build_object_map(
     with timer("descriptors"):
         desc, n_crops = compute_descriptors(mapping_seq, sightings, ids, encoder, config.descriptors, progress)
     with timer("filtering"):
-        invalid, freq = invalid_landmarks(rfs, ids, config.filtering)
+        invalid, freq = invalid_landmarks(rfs, ids, config.filtering, {i: rec.points[sets[i]] for i in ids})
     categories = _categories(mapping_seq, sets, gt_labels, by_id=source == "masks")
     rng = np.random.default_rng(config.seed)
     landmarks = {}

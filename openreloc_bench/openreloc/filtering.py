@@ -7,6 +7,12 @@ reference frames of its co-visibility neighbourhood (every reference frame that 
 or any landmark seen together with it). In one room this equals the global share; in a multi-room
 scene a room's wall is compared with the frames of that room, not with every frame of the house,
 where even a wall would look rare. ``scope: global`` gives the paper's plain share.
+
+Frequency alone does not separate structure from furniture on the generated scenes (measured, see
+:attr:`FilterConfig.max_frequency`), so a second, geometric cue is on by default: a landmark whose
+points form a large thin slab (principal extents: longest >= ``plane_min_span``, thinnest <=
+``plane_max_thickness``) is a wall, floor or ceiling piece. This is beyond the paper (which only names
+frequency); ``shape_filter: false`` restores the paper-literal rule.
 """
 
 from __future__ import annotations
@@ -26,14 +32,23 @@ class FilterConfig:
 
     enabled: bool = True
     """Mark frequent landmarks invalid (the 'no invalid-object filtering' ablation turns this off)."""
-    max_frequency: float = 0.75
-    """Landmarks in more than this share of (neighbourhood) reference frames are invalid. Measured
-    (benchmarks/bench_mapping.py, oracle masks): smoke room: floor 1.0, armchair 1.0, fan 0.9, walls
-    0.3-0.7, so 0.75 removes the floor but also the armchair and fan; 4-room scene: floors 0.35-0.48,
-    walls 0.10-0.33, furniture up to 0.38, so 0.75 removes nothing. No threshold on this frequency
-    separates structure from furniture on the generated scenes; a geometric criterion is needed."""
+    max_frequency: float = 1.0
+    """Landmarks in more than this share of (neighbourhood) reference frames are invalid; 1.0 turns the
+    frequency cue off (the paper's rule is frequency alone: use 0.75 with ``shape_filter: false``).
+    Measured (benchmarks/bench_mapping.py, oracle masks): smoke room: floor 1.0, armchair 1.0, fan 0.9,
+    walls 0.3-0.7, so 0.75 removes the floor but also the armchair and the fan; 4-room scene: floors
+    0.35-0.48, walls 0.10-0.33, furniture up to 0.38, so 0.75 removes nothing. No threshold separates
+    structure from furniture on the generated scenes; the shape cue does (4-room scene: removes
+    exactly the floor, wall and ceiling pieces; smoke room: floor and walls)."""
     scope: Literal["local", "global"] = "local"
     """'local': share within the landmark's co-visibility neighbourhood; 'global': share of all."""
+    shape_filter: bool = True
+    """Also mark large thin slabs (walls, floors, ceilings) invalid, whatever their frequency."""
+    plane_min_span: float = 2.5
+    """Metres: a slab's longest principal extent must reach this. Wall pieces are room-height (2.7 m in
+    the generator) or longer; the longest thin furniture of the asset library, runner rugs, reaches 2.44 m."""
+    plane_max_thickness: float = 0.15
+    """Metres: a slab's thinnest principal extent (robust 2-98 percentile range) is at most this."""
 
 
 def reference_frequency(rfs: list[ReferenceFrame], ids: list[int], scope: str = "local") -> dict[int, float]:
@@ -51,8 +66,32 @@ def reference_frequency(rfs: list[ReferenceFrame], ids: list[int], scope: str = 
     return {i: float(count[col[i]] / max(neighbourhood[col[i]], 1)) for i in ids}
 
 
-def invalid_landmarks(rfs: list[ReferenceFrame], ids: list[int], cfg: FilterConfig) -> tuple[set[int], dict[int, float]]:
-    """(ids to mark invalid, frequency per id)."""
+def principal_extents(points: np.ndarray) -> np.ndarray:
+    """Robust (2-98 percentile) extents along the points' principal axes, ascending. Oriented, so a
+    wall that is not axis-aligned (real scans) is still thin along its normal."""
+    p = np.asarray(points, dtype=np.float64)
+    if len(p) < 4:
+        return np.zeros(3)
+    centred = p - p.mean(0)
+    _, vecs = np.linalg.eigh(centred.T @ centred)
+    proj = centred @ vecs
+    lo, hi = np.percentile(proj, [2, 98], axis=0)
+    return np.sort(hi - lo)
+
+
+def is_slab(points: np.ndarray, cfg: FilterConfig) -> bool:
+    ext = principal_extents(points)
+    return bool(ext[2] >= cfg.plane_min_span and ext[0] <= cfg.plane_max_thickness)
+
+
+def invalid_landmarks(
+    rfs: list[ReferenceFrame], ids: list[int], cfg: FilterConfig, points: dict[int, np.ndarray] | None = None
+) -> tuple[set[int], dict[int, float]]:
+    """(ids to mark invalid, frequency per id). ``points`` (id -> world points) enables the shape cue."""
     freq = reference_frequency(rfs, ids, cfg.scope)
-    bad = {i for i, f in freq.items() if cfg.enabled and f > cfg.max_frequency}
+    if not cfg.enabled:
+        return set(), freq
+    bad = {i for i, f in freq.items() if f > cfg.max_frequency}
+    if cfg.shape_filter and points is not None:
+        bad |= {i for i in ids if i in points and is_slab(points[i], cfg)}
     return bad, freq

@@ -32,3 +32,38 @@ def test_local_frequency_is_per_neighbourhood() -> None:
 def test_disabled_filter_keeps_everything() -> None:
     bad, freq = invalid_landmarks(TWO_ROOMS, [1, 2], FilterConfig(enabled=False))
     assert bad == set() and freq[1] == 1.0
+
+
+def _box_points(size: tuple[float, float, float], yaw_deg: float = 0.0, n: int = 4000) -> np.ndarray:
+    rng = np.random.default_rng(0)
+    p = rng.uniform(-0.5, 0.5, (n, 3)) * np.asarray(size)
+    a = np.radians(yaw_deg)
+    R = np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
+    return p @ R.T
+
+
+@pytest.mark.parametrize(
+    "name, size, yaw, slab",
+    [
+        ("wall", (4.0, 0.1, 2.7), 0, True),
+        ("oblique wall", (4.0, 0.1, 2.7), 33, True),
+        ("short wall piece", (0.6, 0.1, 2.7), 0, True),
+        ("floor", (5.0, 4.0, 0.05), 0, True),
+        ("runner rug", (2.44, 0.78, 0.013), 0, False),
+        ("sofa", (2.2, 0.9, 0.8), 0, False),
+        ("bookshelf", (0.9, 0.35, 2.0), 0, False),
+    ],
+)
+def test_shape_cue_marks_slabs(name, size, yaw, slab) -> None:
+    from openreloc_bench.openreloc.filtering import is_slab
+
+    assert is_slab(_box_points(size, yaw), FilterConfig()) is slab, name
+
+
+def test_shape_cue_in_invalid_landmarks_and_paper_literal_switch() -> None:
+    pts = {1: _box_points((4.0, 0.1, 2.7)), 2: _box_points((0.5, 0.5, 0.8))}
+    frames = rfs([[1, 2], [2], [1], [2]])
+    bad, _ = invalid_landmarks(frames, [1, 2], FilterConfig(max_frequency=0.9), pts)
+    assert bad == {1}
+    bad, _ = invalid_landmarks(frames, [1, 2], FilterConfig(max_frequency=0.9, shape_filter=False), pts)
+    assert bad == set()

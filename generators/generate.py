@@ -1,0 +1,162 @@
+"""Scene generation end to end: spec -> layout -> trajectories -> rendered splits and variants on disk.
+
+Everything is a deterministic function of the :class:`~generators.spec.SceneSpec`, so the same spec
+gives byte-identical files, and a resumed run (``resume=True``) recomputes the same poses and skips
+every frame whose pose file (written last by :class:`~openreloc_bench.data.scene.SceneWriter`) exists.
+Suites run scenes in a spawn-context process pool: no GL context exists before a worker starts.
+"""
+
+from __future__ import annotations
+
+import logging
+import multiprocessing as mp
+import shutil
+from concurrent.futures import Future, ProcessPoolExecutor, ThreadPoolExecutor, as_completed
+from dataclasses import asdict
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from generators.layout import Layout, build_layout
+from generators.render import Renderer, create_renderer
+from generators.spec import SceneSpec, SuiteSpec, spec_hash
+from generators.trajectories import mapping_trajectory, sample_queries
+from generators.variants import LIGHT_SPLITS, Lighting, light_variants, sample_displacements
+from openreloc_bench import __version__, config, geometry
+from openreloc_bench.data import io
+from openreloc_bench.data.scene import SceneWriter
+from openreloc_bench.errors import ConfigError
+
+log = logging.getLogger(__name__)
+
+GENERATOR_VERSION = f"{__version__}+gen1"
+"""Recorded in scene.json; bump the suffix whenever output for the same spec changes."""
+
+
+def scene_info(spec: SceneSpec, layout: Layout, K: np.ndarray, counts: dict[str, int], extra: dict) -> dict:
+    """Content of scene.json (no timestamps or paths: it must be byte-identical across runs)."""
+    return {
+        "name": spec.name,
+        "kind": spec.kind,
+        "seed": spec.seed,
+        "spec_hash": spec_hash(spec),
+        "spec": config.to_dict(spec),
+        "generator_version": GENERATOR_VERSION,
+        "intrinsics": {"K": np.round(K, 9).tolist(), "width": spec.width, "height": spec.height, "fov_y": spec.fov_y},
+        "footprint": [round(v, 5) for v in layout.footprint],
+        "floors": [{"index": f, "z": round(z, 5), "ceiling_height": layout.ceiling_height} for f, z in enumerate(layout.floor_z)],
+        "rooms": [{"name": r.name, "kind": r.kind, "floor": r.floor, "rect": [round(v, 5) for v in r.rect],
+                   "z0": round(r.z0, 5)} for r in layout.rooms],
+        "doors": [{"floor": d.floor, "centre": np.round(d.centre, 5).tolist(), "axis": d.axis, "rooms": list(d.rooms)}
+                  for d in layout.doors],
+        "lights": [{"index": k, "pos": np.round(li.pos, 5).tolist(), "room": li.room, "floor": li.floor}
+                   for k, li in enumerate(layout.lights)],
+        "splits": counts,
+        **extra,
+    }
+
+
+def render_split(renderer: Renderer, writer: SceneWriter, split: str, poses: np.ndarray, K: np.ndarray,
+                  spec: SceneSpec, resume: bool, bar: tqdm | None) -> int:
+    """Render and write one split; returns the number of frames reused from a previous run.
+
+    PNG encoding and writing of frame i overlap the rendering of frame i+1 (one writer thread; cv2
+    releases the GIL). Each frame still ends with its pose file, so an interrupted run loses at most
+    the frame in flight, which resume redoes.
+    """
+    writer.write_intrinsics(split, K)
+    reused = 0
+    pending: Future | None = None
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        for i, T in enumerate(poses):
+            if resume and writer.has_frame(split, i):
+                reused += 1
+            else:
+                rgb, depth, inst = renderer.render(T, K, spec.width, spec.height)
+                if pending is not None:
+                    pending.result()
+                pending = pool.submit(writer.write_frame, split, i, rgb, depth, inst, T)
+            if bar is not None:
+                bar.update(1)
+        if pending is not None:
+            pending.result()
+    return reused
+
+
+def generate_scene(spec: SceneSpec, out_dir: Path | str, resume: bool = False, progress: bool = True) -> Path:
+    """Generate ``out_dir/<spec.name>/`` (all splits and variants); returns the scene directory.
+
+    Without ``resume`` an existing generated scene of the same name is replaced; with it, finished
+    frames are kept (the spec hash must match).
+    """
+    root = Path(out_dir) / spec.name
+    info_path = root / "scene.json"
+    if root.exists():
+        if not info_path.exists() and any(root.iterdir()):
+            raise ConfigError(f"{root}: exists and is not a generated scene; refusing to overwrite")
+        if resume and info_path.exists() and io.read_json(info_path).get("spec_hash") != spec_hash(spec):
+            raise ConfigError(f"{root}: was generated from a different spec; cannot resume (delete it or drop --resume)")
+        if not resume:
+            shutil.rmtree(root)
+    layout = build_layout(spec)
+    K = geometry.intrinsics_from_fov(spec.width, spec.height, spec.fov_y)
+    writer = SceneWriter(root)
+    renderer = create_renderer(layout, spec.backend, spec.width, spec.height)
+    try:
+        mapping = mapping_trajectory(layout, spec)
+        queries, qinfo = sample_queries(layout, spec, mapping, renderer)
+        displacements = sample_displacements(layout, spec, queries[:, :3, 3])
+        lights = light_variants(spec, len(layout.lights))
+        splits: dict[str, tuple[np.ndarray, Lighting]] = {"mapping": (mapping, Lighting()), "query": (queries, Lighting())}
+        splits.update({s: (queries, lights[s]) for s in LIGHT_SPLITS})
+        splits["query_displaced"] = (queries, Lighting())
+        counts = {s: len(p) for s, (p, _) in splits.items()}
+        extra = {
+            "lighting": {s: asdict(li) for s, (_, li) in splits.items()},
+            "query_viewpoints": [asdict(q) for q in qinfo],
+            "displaced_objects": [d.id for d in displacements],
+        }
+        root.mkdir(parents=True, exist_ok=True)
+        writer.write_scene_info(scene_info(spec, layout, K, counts, extra))
+        writer.write_objects(layout.objects())
+        writer.write_displacements([asdict(d) for d in displacements])
+        reused = 0
+        with tqdm(total=sum(counts.values()), desc=spec.name, unit="frame", disable=not progress, leave=False) as bar:
+            for split, (poses, lighting) in splits.items():
+                renderer.set_lighting(lighting.level, lighting.tint, lighting.lights_off)
+                if split == "query_displaced":
+                    for d in displacements:
+                        renderer.set_instance_pose(d.id, np.asarray(d.transform_after))
+                reused += render_split(renderer, writer, split, poses, K, spec, resume, bar)
+        if reused:
+            log.info("%s: reused %d finished frames", spec.name, reused)
+    finally:
+        renderer.close()
+    return root
+
+
+def _worker(spec_dict: dict, out_dir: str, resume: bool) -> str:
+    spec = config.from_dict(SceneSpec, spec_dict)
+    return str(generate_scene(spec, out_dir, resume=resume, progress=False))
+
+
+def generate_suite(suite: SuiteSpec, out_dir: Path | str, resume: bool = False, workers: int = 1,
+                   only: list[str] | None = None) -> list[Path]:
+    """Generate every scene of ``suite`` (or the named ones) into ``out_dir``; returns the scene dirs."""
+    specs = suite.scene_specs()
+    if only:
+        unknown = sorted(set(only) - {s.name for s in specs})
+        if unknown:
+            raise ConfigError(f"unknown scene '{unknown[0]}' in --scenes (suite has: {', '.join(s.name for s in specs)})")
+        specs = [s for s in specs if s.name in only]
+    out_dir = Path(out_dir)
+    if workers <= 1 or len(specs) == 1:
+        return [generate_scene(s, out_dir, resume=resume, progress=True) for s in tqdm(specs, desc=suite.name, unit="scene")]
+    done: dict[str, Path] = {}
+    ctx = mp.get_context("spawn")
+    with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
+        futures = {pool.submit(_worker, config.to_dict(s), str(out_dir), resume): s.name for s in specs}
+        for fut in tqdm(as_completed(futures), total=len(futures), desc=suite.name, unit="scene"):
+            done[futures[fut]] = Path(fut.result())
+    return [done[s.name] for s in specs]

@@ -1,0 +1,186 @@
+"""Scene and suite specifications: what to generate, validated strictly before anything is written.
+
+A suite YAML lists scenes; each scene is a :class:`SceneSpec` (name, kind, seed, size parameters).
+Everything the generator does is a deterministic function of the spec, so :func:`spec_hash` identifies a
+scene's content (it is recorded in ``scene.json``).
+
+Seeds: suites use seeds below :data:`TRAINING_SEED_MIN`; seeds at or above it are reserved for scenes
+that train encoders (e.g. object-crop fine-tuning), so no benchmark scene is ever seen in training.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Literal
+
+from openreloc_bench import config
+from openreloc_bench.errors import ConfigError
+
+TRAINING_SEED_MIN = 1_000_000
+"""Seeds >= this are reserved for encoder TRAINING scenes; suite validation rejects them."""
+
+MIN_ROOM_SIDE_M = 2.0
+"""Smallest room side that still fits furniture and a camera path."""
+
+MAX_OBJECTS_PER_M2 = 2.5
+"""Upper bound on objects per square metre of the smallest possible room (floor + surface + wall items)."""
+
+_NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
+
+
+@dataclass
+class SceneSpec:
+    """One synthetic scene: layout kind, seed and size parameters."""
+
+    name: str = "scene"
+    """Directory name of the scene (letters, digits, '-', '_', '.')."""
+    kind: Literal["single-room", "multi-room", "multi-floor"] = "single-room"
+    """Layout family: one room, 3-8 rooms on one floor joined by doorways, or 2-3 floors joined by stairs."""
+    seed: int = 0
+    """Random seed; everything (layout, assets, trajectories, variants) derives from it."""
+    rooms: int = 1
+    """Rooms per floor (1 for single-room, 3-8 for multi-room, 2-8 per floor for multi-floor)."""
+    floors: int = 1
+    """Number of storeys (1, or 2-3 for multi-floor)."""
+    objects_per_room: int = 20
+    """Non-structural objects per room (floor furniture, items on surfaces, wall and ceiling items)."""
+    room_side_min: float = 3.5
+    """Smallest room side in metres."""
+    room_side_max: float = 5.0
+    """Largest room side in metres."""
+    ceiling_height: float = 2.7
+    """Floor-to-ceiling height in metres (storeys are ceiling_height + 0.3 apart)."""
+    width: int = 640
+    """Image width in pixels."""
+    height: int = 480
+    """Image height in pixels."""
+    fov_y: float = 60.0
+    """Vertical field of view in degrees (centred pinhole, square pixels)."""
+    mapping_step_m: float = 0.25
+    """A mapping frame is emitted every this many metres of camera travel..."""
+    mapping_step_deg: float = 15.0
+    """...or every this many degrees of camera rotation, whichever comes first."""
+    max_mapping_frames: int = 0
+    """Cap on mapping frames (subsampled evenly along the path); 0 = no cap."""
+    n_query: int = 50
+    """Query poses (shared by query, query_light1..4 and query_displaced)."""
+    query_min_distance: float = 0.3
+    """Every query camera centre is at least this far (m) from every mapping camera centre..."""
+    query_min_angle: float = 20.0
+    """...and differs by at least this rotation (deg) from every mapping frame within 1 m."""
+    query_min_objects: int = 3
+    """Non-structural objects that must be visible (>= 0.5% of pixels each) in every query."""
+    n_displaced: int = 5
+    """Objects moved or rotated in the query_displaced variant."""
+    light_levels: list[float] = field(default_factory=lambda: [0.7, 0.5, 0.35, 0.2])
+    """Brightness of query_light1..4 relative to the mapping lighting (progressive decay, each in (0, 1])."""
+    backend: Literal["mujoco", "pyrender"] = "mujoco"
+    """Renderer backend."""
+
+    def __post_init__(self) -> None:
+        validate_scene(self)
+
+
+def validate_scene(spec: SceneSpec) -> None:
+    """Raise a one-line :class:`ConfigError` naming the offending key."""
+    n = spec.name
+    if not _NAME_RE.match(spec.name):
+        raise ConfigError(f"scene '{n}': 'name' must be letters, digits, '-', '_' or '.'")
+    positive = {
+        "width": spec.width, "height": spec.height, "fov_y": spec.fov_y, "room_side_min": spec.room_side_min,
+        "room_side_max": spec.room_side_max, "ceiling_height": spec.ceiling_height,
+        "mapping_step_m": spec.mapping_step_m, "mapping_step_deg": spec.mapping_step_deg, "n_query": spec.n_query,
+        "rooms": spec.rooms, "floors": spec.floors,
+    }
+    for key, v in positive.items():
+        if v <= 0:
+            raise ConfigError(f"scene '{n}': '{key}' must be positive, got {v}")
+    nonneg = {"objects_per_room": spec.objects_per_room, "n_displaced": spec.n_displaced, "seed": spec.seed,
+              "max_mapping_frames": spec.max_mapping_frames, "query_min_distance": spec.query_min_distance,
+              "query_min_angle": spec.query_min_angle, "query_min_objects": spec.query_min_objects}
+    for key, v in nonneg.items():
+        if v < 0:
+            raise ConfigError(f"scene '{n}': '{key}' must be >= 0, got {v}")
+    if spec.fov_y >= 170:
+        raise ConfigError(f"scene '{n}': 'fov_y' must be below 170 degrees, got {spec.fov_y}")
+    if spec.room_side_min < MIN_ROOM_SIDE_M:
+        raise ConfigError(f"scene '{n}': 'room_side_min' must be >= {MIN_ROOM_SIDE_M} m, got {spec.room_side_min}")
+    if spec.room_side_max < spec.room_side_min:
+        raise ConfigError(f"scene '{n}': 'room_side_max' ({spec.room_side_max}) is below 'room_side_min' ({spec.room_side_min})")
+    if not 2.2 <= spec.ceiling_height <= 5.0:
+        raise ConfigError(f"scene '{n}': 'ceiling_height' must be in [2.2, 5.0] m, got {spec.ceiling_height}")
+    rooms_ok = {"single-room": (1, 1), "multi-room": (3, 8), "multi-floor": (2, 8)}[spec.kind]
+    if not rooms_ok[0] <= spec.rooms <= rooms_ok[1]:
+        raise ConfigError(f"scene '{n}': 'rooms' must be in [{rooms_ok[0]}, {rooms_ok[1]}] for kind {spec.kind}, got {spec.rooms}")
+    floors_ok = (2, 3) if spec.kind == "multi-floor" else (1, 1)
+    if not floors_ok[0] <= spec.floors <= floors_ok[1]:
+        raise ConfigError(f"scene '{n}': 'floors' must be in [{floors_ok[0]}, {floors_ok[1]}] for kind {spec.kind}, got {spec.floors}")
+    if spec.kind == "multi-floor" and spec.room_side_max < 4.5:
+        raise ConfigError(f"scene '{n}': 'room_side_max' must be >= 4.5 m for multi-floor scenes (stairs need 4 m)")
+    capacity = int(MAX_OBJECTS_PER_M2 * spec.room_side_min**2)
+    if spec.objects_per_room > capacity:
+        raise ConfigError(
+            f"scene '{n}': 'objects_per_room' = {spec.objects_per_room} does not fit a {spec.room_side_min} m room "
+            f"(at most {capacity}); raise room_side_min or lower objects_per_room"
+        )
+    if spec.n_displaced > spec.objects_per_room * spec.rooms * spec.floors:
+        raise ConfigError(f"scene '{n}': 'n_displaced' exceeds the number of objects")
+    if len(spec.light_levels) != 4 or any(not 0 < v <= 1 for v in spec.light_levels):
+        raise ConfigError(f"scene '{n}': 'light_levels' must be 4 values in (0, 1], got {spec.light_levels}")
+    if not 16 <= spec.width <= 4096 or not 16 <= spec.height <= 4096:
+        raise ConfigError(f"scene '{n}': 'width'/'height' must be in [16, 4096]")
+
+
+@dataclass
+class SuiteSpec:
+    """A named list of scenes generated together (one YAML file in ``scenes/``)."""
+
+    name: str = "suite"
+    """Suite name (used in leaderboards)."""
+    description: str = ""
+    """What the suite is for."""
+    defaults: dict = field(default_factory=dict)
+    """Scene keys applied to every scene unless the scene sets them."""
+    scenes: list[dict] = field(default_factory=list)
+    """The scenes, each a mapping of SceneSpec keys."""
+
+    def scene_specs(self) -> list[SceneSpec]:
+        """Validated scene specs, defaults merged in; one-line ConfigError on the first bad scene."""
+        specs = []
+        for i, raw in enumerate(self.scenes):
+            if not isinstance(raw, dict):
+                raise ConfigError(f"'scenes[{i}]': expected a mapping")
+            spec = config.from_dict(SceneSpec, {**self.defaults, **raw}, where=f"scenes[{i}]")
+            if spec.seed >= TRAINING_SEED_MIN:
+                raise ConfigError(
+                    f"'scenes[{i}].seed' = {spec.seed} is in the range reserved for encoder training (>= {TRAINING_SEED_MIN})"
+                )
+            specs.append(spec)
+        names = [s.name for s in specs]
+        dupes = sorted({x for x in names if names.count(x) > 1})
+        if dupes:
+            raise ConfigError(f"'scenes': duplicate scene name '{dupes[0]}'")
+        if not specs:
+            raise ConfigError("'scenes': a suite needs at least one scene")
+        return specs
+
+
+def load_suite(path: Path | str) -> SuiteSpec:
+    """Read and fully validate a suite YAML (every scene spec is checked here, before generation)."""
+    data = config.load_yaml(path)
+    try:
+        suite = config.from_dict(SuiteSpec, data)
+        suite.scene_specs()
+    except ConfigError as e:
+        raise ConfigError(f"{path}: {e}") from None
+    return suite
+
+
+def spec_hash(spec: SceneSpec) -> str:
+    """Stable short hash of everything that determines a scene's content."""
+    payload = json.dumps(config.to_dict(spec), sort_keys=True).encode()
+    return hashlib.sha256(payload).hexdigest()[:16]

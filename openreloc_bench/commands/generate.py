@@ -1,0 +1,38 @@
+"""Generate the scenes of a suite YAML (``scenes/*.yaml``) into ``OUT/<scene name>/``.
+
+Each scene gets mapping, query, query_light1..4 and query_displaced splits in the ScanNet-export
+layout. ``--resume`` keeps finished frames of an interrupted run; ``--workers N`` renders N scenes
+in parallel processes.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+NAME = "generate"
+HELP = "generate synthetic scenes from a suite YAML"
+ORDER = 10
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("suite", type=Path, help="suite YAML, e.g. scenes/smoke.yaml")
+    parser.add_argument("--out", type=Path, required=True, help="output directory (scenes go to OUT/<name>/)")
+    parser.add_argument("--resume", action="store_true",
+                        help="reuse finished frames of an interrupted run (without it, existing scenes are regenerated)")
+    parser.add_argument("--workers", type=int, default=1, help="scenes generated in parallel (default 1)")
+    parser.add_argument("--scenes", type=str, default=None, help="comma-separated scene names (default: all)")
+
+
+def run(args: argparse.Namespace) -> int:
+    from generators.generate import generate_suite
+    from generators.spec import load_suite
+    from openreloc_bench.errors import ConfigError
+
+    if args.workers < 1:
+        raise ConfigError(f"--workers must be >= 1, got {args.workers}")
+    suite = load_suite(args.suite)
+    only = [s.strip() for s in args.scenes.split(",") if s.strip()] if args.scenes else None
+    for path in generate_suite(suite, args.out, resume=args.resume, workers=args.workers, only=only):
+        print(path)
+    return 0

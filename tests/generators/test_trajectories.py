@@ -1,0 +1,72 @@
+"""Occupancy grid, mapping scan and query sampling."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from generators.layout import build_layout
+from generators.render import create_renderer
+from generators.spec import SceneSpec
+from generators.trajectories import QUERY_HEIGHT, mapping_trajectory, occupancy_grid, sample_queries
+from openreloc_bench import geometry
+
+SPEC = SceneSpec(name="t", kind="multi-room", seed=21, rooms=3, objects_per_room=10, width=96, height=72,
+                 n_query=5, mapping_step_m=0.25, mapping_step_deg=15.0)
+
+
+@pytest.fixture(scope="module")
+def scene():
+    layout = build_layout(SPEC)
+    mapping = mapping_trajectory(layout, SPEC)
+    return layout, mapping
+
+
+def test_occupancy_excludes_objects_and_connects_rooms(scene) -> None:
+    from scipy import ndimage
+
+    layout, _ = scene
+    occ = occupancy_grid(layout, 0)
+    assert occ.free.any()
+    for inst in layout.instances:
+        if not inst.structural and inst.aabb[0, 2] < 1.9 and inst.aabb[1, 2] > 0.05:
+            c = inst.aabb.mean(axis=0)[:2]
+            assert not occ.is_free(c[None])[0], inst.category
+    labels, _ = ndimage.label(occ.free, structure=np.ones((3, 3)))
+    main = np.bincount(labels[labels > 0]).argmax()
+    for k, room in enumerate(occ.rooms):  # every room reaches the main free component through its doors
+        assert (labels[occ.room_index == k] == main).any(), room.name
+
+
+def test_mapping_scan(scene) -> None:
+    layout, mapping = scene
+    assert geometry.is_rigid(mapping)
+    occ = occupancy_grid(layout, 0)
+    assert occ.is_free(mapping[:, :2, 3]).all()
+    h = mapping[:, 2, 3]
+    assert h.min() >= 1.2 - 1e-6 and h.max() <= 1.7 + 1e-6
+    step = np.linalg.norm(np.diff(mapping[:, :3, 3], axis=0), axis=1)
+    turn = geometry.rotation_error(mapping[:-1], mapping[1:])
+    assert np.median(step) <= 0.3 and np.percentile(turn, 95) <= 20  # ~0.25 m / ~15 deg per frame
+    assert np.percentile(step, 99) < 0.6  # smooth: no jumps through walls
+    visited = {occ.rooms[k].name for k in occ.room_index[occ.cell(mapping[:, :2, 3])]}
+    assert visited == {r.name for r in layout.rooms}
+    # the camera is upright (no roll) in mapping: image x axis stays horizontal
+    assert np.abs(mapping[:, 2, 0]).max() < 1e-6
+
+
+def test_queries_change_viewpoint_and_see_objects(scene) -> None:
+    layout, mapping = scene
+    with create_renderer(layout, "mujoco", SPEC.width, SPEC.height) as r:
+        poses, infos = sample_queries(layout, SPEC, mapping, r)
+    assert len(poses) == SPEC.n_query and geometry.is_rigid(poses)
+    boxes = np.array([i.aabb for i in layout.instances if not i.structural])
+    for T, info in zip(poses, infos):
+        eye = T[:3, 3]
+        assert QUERY_HEIGHT[0] - 1e-6 <= eye[2] <= QUERY_HEIGHT[1] + 1e-6
+        assert not np.any(np.all((eye > boxes[:, 0]) & (eye < boxes[:, 1]), axis=1))  # never inside an object
+        d = np.linalg.norm(mapping[:, :3, 3] - eye, axis=1)
+        assert d.min() >= SPEC.query_min_distance and info.distance_m == pytest.approx(d.min(), abs=1e-3)
+        assert info.visible_objects >= SPEC.query_min_objects
+    pitch = np.degrees(np.arcsin(-poses[:, 2, 2]))
+    assert pitch.std() > 3  # varied pitch

@@ -41,6 +41,15 @@ def main() -> None:
         vals = [v for v in vals if v is not None]
         if vals:
             print(f"{stage:<10} {np.median(vals):9.4f} {np.mean(vals):9.4f}")
+    matches = [mt for r in records for mt in r.diagnostics.get("matches", [])]
+    scored = [mt for mt in matches if mt.get("query_instance") is not None]
+    if scored:  # the oracle instance ids score the association; the method never uses them
+        correct = sum(mt["landmark"] == mt["query_instance"] for mt in scored)
+        print(f"association precision {correct / len(scored):.1%} ({correct}/{len(scored)} accepted matches correct)")
+    hyps = [r.diagnostics.get("chosen") for r in records if r.diagnostics.get("chosen")]
+    if hyps:
+        kinds = [h.split(":")[0] for h in hyps]
+        print("chosen hypothesis: " + ", ".join(f"{k} x{kinds.count(k)}" for k in sorted(set(kinds))))
     for line in summary(records, dict(zip(seq.names, seq.poses))):
         print(line)
 

@@ -40,6 +40,11 @@ class AssociationConfig:
     """Absolute floor on uniqueness (variance of cosines): below it an object is never unique."""
     hops: int = 1
     """Path length eta of the breadth-first 3D subgraph (paper: 1)."""
+    oracle: bool = False
+    """DIAGNOSTIC ONLY, not a method setting: match each query object to the landmark whose id equals its
+    dataset instance id (with oracle masks, landmark ids are instance ids), skipping encoding, uniqueness,
+    language and the scene graph. It measures the geometric stages (coarse prior, refinement)
+    independently of the encoder. Needs the oracle-mask track; results made with it are not OpenReLoc's."""
 
 
 @dataclass
@@ -206,3 +211,14 @@ def associate(
         taken.add(choice)
         out.append(m)
     return sorted(out, key=lambda m: m.query)
+
+
+def oracle_matches(objects: list[QueryObject], landmark_ids: list[int],
+                   invalid: frozenset[int] | set[int] = frozenset()) -> list[Match]:
+    """DIAGNOSTIC: the ground-truth association (``AssociationConfig.oracle``): each object whose
+    dataset instance id is a (valid) landmark id is matched to it. Objects without an instance id,
+    or whose instance is not in the map, stay unmatched."""
+    known = set(landmark_ids) - set(invalid)
+    return [Match(query=qi, landmark=int(o.instance_id), visual_sim=float("nan"), text_sim=None, how="oracle",
+                  candidates=[int(o.instance_id)])
+            for qi, o in enumerate(objects) if o.instance_id is not None and int(o.instance_id) in known]

@@ -12,6 +12,7 @@ another size than the map's camera) -- never an exception.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -24,14 +25,22 @@ from openreloc_bench import config as cfglib
 from openreloc_bench import geometry
 from openreloc_bench.data.types import SceneSequence
 from openreloc_bench.methods import Failure, PoseEstimate, QueryFrame
-from openreloc_bench.openreloc.association import AssociationConfig, Match, QueryObject, associate, uniqueness, unique_mask
+from openreloc_bench.openreloc.association import (
+    AssociationConfig,
+    Match,
+    QueryObject,
+    associate,
+    oracle_matches,
+    unique_mask,
+    uniqueness,
+)
 from openreloc_bench.openreloc.build import MappingConfig, build_object_map
 from openreloc_bench.openreloc.descriptors import pad_box
 from openreloc_bench.openreloc.explain import PlacedObject, explain_pose
 from openreloc_bench.openreloc.map import ObjectMap
-from openreloc_bench.openreloc.refine import RefineConfig, RefineTarget, refine_pose
-from openreloc_bench.openreloc.retrieval import retrieve_reference
-from openreloc_bench.vision.base import ObjectMask, create_describer, create_encoder, create_segmenter
+from openreloc_bench.openreloc.refine import RefineConfig, RefineTarget, refine_poses
+from openreloc_bench.openreloc.retrieval import CoarseConfig, pnp_prior, retrieve_reference
+from openreloc_bench.vision.base import ImageTextEncoder, ObjectMask, create_describer, create_encoder, create_segmenter
 
 STAGES = ("segment", "encode", "describe", "associate", "retrieve", "refine")
 
@@ -62,6 +71,8 @@ class OpenReLocConfig:
     """Fewer associated landmarks than this: the query fails."""
     association: AssociationConfig = field(default_factory=AssociationConfig)
     """Landmark association settings."""
+    coarse: CoarseConfig = field(default_factory=CoarseConfig)
+    """Coarse-stage hypotheses (reference frames, PnP); ``top_frames=1, pnp=False`` is the paper's single prior."""
     refinement: RefineConfig = field(default_factory=RefineConfig)
     """Dual-path 2D ICP settings."""
     mapping: MappingConfig = field(default_factory=MappingConfig)
@@ -69,7 +80,8 @@ class OpenReLocConfig:
     no_refine: bool = False
     """Ablation #1: return the coarse prior (the reference frame's pose) without ICP refinement."""
     no_coarse: bool = False
-    """Ablation #2: refine from an uninformed start (map centroid, looking at the matched objects)."""
+    """Ablation #2: refine from an uninformed start (map centroid, looking at the matched objects): no
+    reference-frame and no PnP hypothesis."""
     no_scene_graph: bool = False
     """Ablation #3: ambiguous objects keep their visual top-1 instead of sub-graph matching."""
     no_language: bool = False
@@ -108,7 +120,8 @@ class OpenReLoc:
         self.describer = None
         if not cfg.no_language:
             # every describer embeds its phrase choice (or its fallback) in the map's encoder space
-            self.describer = create_describer(cfg.describer, encoder=self.encoder, **cfg.describer_options)
+            # the describer re-encodes the same vocabulary phrases for every object: memoise them
+            self.describer = create_describer(cfg.describer, encoder=TextCache(self.encoder), **cfg.describer_options)
         self.gt_segmenter = create_segmenter("gt", min_area=cfg.min_mask_area)
         self.segmenter = create_segmenter(cfg.segmenter, **cfg.segmenter_options)
         self.ids = sorted(m.landmarks)
@@ -146,11 +159,81 @@ class OpenReLoc:
                 masks = self.gt_segmenter.segment(rgb, query.instance)
             else:
                 masks = self.segmenter.segment(rgb)
+            occluders = np.zeros((m.height, m.width), bool)
+            for mk in masks:
+                occluders |= mk.mask
             masks = [mk for mk in masks if int(mk.mask.sum()) >= cfg.min_mask_area]
         diag["detected"] = len(masks)
         if len(masks) < cfg.min_objects:
             return Failure(f"{len(masks)} object(s) detected, need at least {cfg.min_objects}", diag)
 
+        invalid = frozenset() if cfg.no_filtering else frozenset(set(self.ids) - set(m.valid_ids()))
+        if cfg.association.oracle:
+            if query.instance is None:
+                return Failure("association.oracle (a diagnostic) needs the oracle-mask track", diag)
+            largest = sorted(range(len(masks)), key=lambda i: -int(masks[i].mask.sum()))[: cfg.max_objects]
+            zero = np.zeros(self.descriptors.shape[1], np.float32)
+            objects = [_query_object(masks[i], zero, 0.0) for i in sorted(largest)]
+            diag["unique"] = len(objects)
+            with stage("associate"):
+                matches = oracle_matches(objects, self.ids, invalid)
+        else:
+            objects_or_failure = self._objects(rgb, masks, diag, stage)
+            if isinstance(objects_or_failure, Failure):
+                return objects_or_failure
+            objects = objects_or_failure
+            with stage("associate"):
+                graph = None if cfg.no_scene_graph else m.graph
+                # association sees every landmark; filtered ones (walls, floor) only veto the query
+                # objects that look most like them, instead of forcing those onto a valid look-alike
+                matches = associate(objects, self.ids, self.descriptors, graph, cfg.association, invalid)
+        diag["matches"] = [_match_diag(mt, objects, m) for mt in matches]
+        if len(matches) < cfg.min_matches:
+            return Failure(f"{len(matches)} landmark(s) associated, need at least {cfg.min_matches}", diag)
+
+        with stage("retrieve"):
+            hypotheses = self._hypotheses(matches, objects, K, diag)
+        if not hypotheses:
+            return Failure("no reference frame shares a matched landmark", diag)
+
+        targets = [RefineTarget(mt.landmark, m.landmarks[mt.landmark].points, objects[mt.query].mask) for mt in matches]
+        refining = not cfg.no_refine
+        if refining or len(hypotheses) > 1:  # several hypotheses without refinement: keep the best-fitting one
+            rcfg = cfg.refinement if refining else dataclasses.replace(cfg.refinement, max_iterations=0)
+            with stage("refine" if refining else "retrieve"):
+                results = refine_poses([T for _, T in hypotheses], K, targets, rcfg, seed=cfg.seed, occluders=occluders)
+            order = sorted(range(len(results)), key=lambda i: (not np.isfinite(results[i].loss), results[i].loss, i))
+            best = order[0]
+            res = results[best]
+            diag["hypotheses"] = [{"source": src, "initial_loss": _num(r.initial_loss), "loss": _num(r.loss),
+                                   "iterations": r.iterations, "T_wc": np.round(r.T_wc, 6).tolist()}
+                                  for (src, _), r in zip(hypotheses, results)]
+            diag["chosen"] = hypotheses[best][0]
+            T_prior = hypotheses[best][1]
+            if refining:
+                diag["refine"] = {
+                    "iterations": res.iterations, "initial_loss": _num(res.initial_loss), "loss": _num(res.loss),
+                    "object_losses": {str(k): _num(v) for k, v in res.object_losses.items()}, "outliers": res.outliers,
+                }
+                if res.reason is not None:
+                    return Failure(res.reason, diag)
+            T = res.T_wc if refining else T_prior
+        else:
+            diag["chosen"] = hypotheses[0][0]
+            T = T_prior = hypotheses[0][1]
+        diag["prior_T_wc"] = np.round(T_prior, 6).tolist()
+
+        placed = [PlacedObject(m.landmarks[mt.landmark].center, m.landmarks[mt.landmark].box_min,
+                               m.landmarks[mt.landmark].box_max, m.landmarks[mt.landmark].category,
+                               objects[mt.query].phrase) for mt in matches]
+        diag["explanation"] = explain_pose(T, placed)
+        return PoseEstimate(T, diag)
+
+    def _objects(self, rgb: np.ndarray, masks: list[ObjectMask], diag: dict[str, Any],
+                 stage: Any) -> list[QueryObject] | Failure:
+        """Embed the query objects, keep the unique ones and describe them (paper section 3.2)."""
+        cfg, m = self.config, self.map
+        assert m is not None
         with stage("encode"):
             crops = [rgb[y0:y1, x0:x1] for x0, y0, x1, y1 in
                      (pad_box(mk.box, self.crop_padding, m.width, m.height) for mk in masks)]
@@ -162,51 +245,37 @@ class OpenReLoc:
         diag["unique"] = len(objects)
         if len(objects) < cfg.min_objects:
             return Failure(f"{len(objects)} of {len(masks)} object(s) unique enough to match, need {cfg.min_objects}", diag)
-
         with stage("describe"):
             if self.describer is not None:
                 phrases = [self.describer.describe(rgb, o.mask) for o in objects]
                 for o, p, e in zip(objects, phrases, self.encoder.encode_texts(phrases)):
                     o.phrase, o.text = p, e
+        return objects
 
-        with stage("associate"):
-            graph = None if cfg.no_scene_graph else m.graph
-            # association sees every landmark; filtered ones (walls, floor) only veto the query
-            # objects that look most like them, instead of forcing those onto a valid look-alike
-            invalid = frozenset() if cfg.no_filtering else frozenset(set(self.ids) - set(m.valid_ids()))
-            matches = associate(objects, self.ids, self.descriptors, graph, cfg.association, invalid)
-        diag["matches"] = [_match_diag(mt, objects, m) for mt in matches]
-        if len(matches) < cfg.min_matches:
-            return Failure(f"{len(matches)} landmark(s) associated, need at least {cfg.min_matches}", diag)
-
-        with stage("retrieve"):
-            boxes = {mt.landmark: objects[mt.query].box.astype(np.float64) for mt in matches}
-            ret = retrieve_reference(boxes, m.reference_frames, cfg.retrieval)
+    def _hypotheses(self, matches: list[Match], objects: list[QueryObject], K: np.ndarray,
+                    diag: dict[str, Any]) -> list[tuple[str, np.ndarray]]:
+        """(source, T_wc) starting poses: the ranked reference frames and the PnP pose (coarse stage),
+        or only the uninformed start of the no-coarse ablation."""
+        cfg, m = self.config, self.map
+        assert m is not None
+        boxes = {mt.landmark: objects[mt.query].box.astype(np.float64) for mt in matches}
+        ret = retrieve_reference(boxes, m.reference_frames, cfg.retrieval)
         if ret is None:
-            return Failure("no reference frame shares a matched landmark", diag)
+            return []
         diag["reference_frame"] = {"index": ret.frame.index, "shared": ret.shared, "score": round(ret.score, 4),
                                    "ranking": ret.ranking}
-        T_prior = self._uninformed_start([mt.landmark for mt in matches]) if cfg.no_coarse else ret.frame.T_wc
-        diag["prior_T_wc"] = np.round(T_prior, 6).tolist()
-
-        T = T_prior
-        if not cfg.no_refine:
-            with stage("refine"):
-                targets = [RefineTarget(mt.landmark, m.landmarks[mt.landmark].points, objects[mt.query].mask) for mt in matches]
-                res = refine_pose(T_prior, K, targets, cfg.refinement, seed=cfg.seed)
-            diag["refine"] = {
-                "iterations": res.iterations, "initial_loss": _num(res.initial_loss), "loss": _num(res.loss),
-                "object_losses": {str(k): _num(v) for k, v in res.object_losses.items()}, "outliers": res.outliers,
-            }
-            if res.reason is not None:
-                return Failure(res.reason, diag)
-            T = res.T_wc
-
-        placed = [PlacedObject(m.landmarks[mt.landmark].center, m.landmarks[mt.landmark].box_min,
-                               m.landmarks[mt.landmark].box_max, m.landmarks[mt.landmark].category,
-                               objects[mt.query].phrase) for mt in matches]
-        diag["explanation"] = explain_pose(T, placed)
-        return PoseEstimate(T, diag)
+        if cfg.no_coarse:
+            return [("uninformed", self._uninformed_start([mt.landmark for mt in matches]))]
+        out = [(f"reference:{f.index}", f.T_wc) for f in ret.ranked[: max(1, cfg.coarse.top_frames)]]
+        if cfg.coarse.pnp:
+            qmasks = [objects[mt.query].mask for mt in matches]
+            centroids = np.array([np.argwhere(mk)[:, ::-1].mean(0) for mk in qmasks])
+            truncated = np.array([mk[[0, -1]].any() or mk[:, [0, -1]].any() for mk in qmasks])
+            T = pnp_prior(centroids, truncated, [m.landmarks[mt.landmark].points for mt in matches], K,
+                          (m.width, m.height), cfg.coarse)
+            if T is not None:
+                out.append(("pnp", T))
+        return out
 
     def _uninformed_start(self, matched: list[int]) -> np.ndarray:
         """The no-coarse ablation's start: at the centroid of all landmarks, at the mean height of the
@@ -223,6 +292,33 @@ class OpenReLoc:
         return geometry.look_at(eye, target)
 
 
+class TextCache(ImageTextEncoder):
+    """An encoder whose text embeddings are memoised per string (images pass through): the offline
+    describer encodes the same colour/material/noun phrases for every query object."""
+
+    def __init__(self, encoder: ImageTextEncoder, max_entries: int = 100_000):
+        self.inner, self.max_entries = encoder, max_entries
+        self.name, self.dim = encoder.name, encoder.dim
+        self._cache: dict[str, np.ndarray] = {}
+
+    def encode_images(self, crops: Any) -> np.ndarray:
+        return self.inner.encode_images(crops)
+
+    def encode_texts(self, texts: Any) -> np.ndarray:
+        texts = list(texts)
+        missing = list(dict.fromkeys(t for t in texts if t not in self._cache))
+        if missing:
+            if len(self._cache) + len(missing) > self.max_entries:
+                self._cache.clear()
+            self._cache.update(zip(missing, self.inner.encode_texts(missing)))
+        if not texts:
+            return np.zeros((0, self.dim), np.float32)
+        return np.stack([self._cache[t] for t in texts]).astype(np.float32)
+
+    def config(self) -> dict[str, Any]:
+        return self.inner.config()
+
+
 def _query_object(mk: ObjectMask, visual: np.ndarray, gamma: float) -> QueryObject:
     return QueryObject(mask=mk.mask, box=np.asarray(mk.box, dtype=np.float64), visual=visual,
                        instance_id=mk.instance_id, uniqueness=gamma)
@@ -236,7 +332,7 @@ def _match_diag(mt: Match, objects: list[QueryObject], m: ObjectMap) -> dict[str
         "query_instance": o.instance_id,
         "phrase": o.phrase,
         "how": mt.how,
-        "visual_sim": round(mt.visual_sim, 4),
+        "visual_sim": _num(mt.visual_sim),
         "text_sim": None if mt.text_sim is None else round(mt.text_sim, 4),
         "graph_score": None if mt.graph_score is None else round(mt.graph_score, 4),
         "uniqueness": round(o.uniqueness, 6),
@@ -254,6 +350,6 @@ def _stage_timer(timings: dict[str, float]) -> Any:
         try:
             yield
         finally:
-            timings[name] = round(time.perf_counter() - t, 4)
+            timings[name] = round(timings.get(name, 0.0) + time.perf_counter() - t, 4)  # a stage may run twice
 
     return stage

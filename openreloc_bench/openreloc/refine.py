@@ -76,6 +76,26 @@ class RefineConfig:
     extremal points are pulled onto the contour while the forward path keeps all points inside."""
     min_depth: float = 0.05
     """Points closer than this (metres, camera z) are ignored: behind or inside the camera."""
+    max_side: int = 320
+    """Beyond the paper (speed): masks are area-resampled so their longer side is at most this many
+    pixels (the intrinsics scaled with them); ``huber_delta`` and reported losses stay in full-resolution
+    pixels. 0 = full resolution (paper-literal). At 640x480 a step costs ~4x less at 320."""
+    occlusion_aware: bool = False
+    """Beyond the paper (off by default): the forward path ignores projected points landing on pixels of
+    *another* query segment (that segment hides them; pulling them onto the own mask drags the pose).
+    Needs the ``occluders`` image. Measured: on exact boxes with a box standing on a table it fixes the
+    drag (65 cm start: 19 -> 8 cm), but on a generated 3-room scene (oracle association, 20 queries) it
+    lowers recall@50 from 65% to 55%: a wrong pose whose points fall on other segments pays nothing."""
+    huber_delta_start: float = 0.0
+    """Beyond the paper (coarse-to-fine): when larger than ``huber_delta``, the Huber threshold starts here
+    and decays geometrically to ``huber_delta`` over ``anneal_steps`` (a wider quadratic basin first).
+    0 = constant ``huber_delta`` (paper)."""
+    correspondence_every: int = 3
+    """Beyond the paper (speed): the backward path's nearest projected points (a brute-force search, half
+    of a step's time) are recomputed every this many steps and held fixed in between, as classic ICP
+    alternates correspondence and update steps. 1 = every step."""
+    anneal_steps: int = 30
+    """Steps of the Huber-threshold decay (used only with ``huber_delta_start``)."""
 
 
 @dataclass
@@ -145,62 +165,112 @@ def backward_pixels(mask: np.ndarray, which: str) -> np.ndarray:
 
 
 def _quat_to_rotmat(q: torch.Tensor) -> torch.Tensor:
-    w, x, y, z = q / q.norm()
+    """(B, 4) quaternions (w, x, y, z; normalised here) -> (B, 3, 3) rotation matrices."""
+    w, x, y, z = (q / q.norm(dim=-1, keepdim=True)).unbind(-1)
     return torch.stack(
         [
-            torch.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)]),
-            torch.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)]),
-            torch.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]),
-        ]
+            torch.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+            torch.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+            torch.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
+        ],
+        -2,
     )
 
 
-class _Problem:
-    """Padded, batched tensors of all objects; evaluates per-object losses at a local pose (q, t)."""
+def working_scale(height: int, width: int, max_side: int) -> float:
+    """Factor masks are resized by so their longer side is at most ``max_side`` (1 = full size)."""
+    return 1.0 if max_side <= 0 else min(1.0, max_side / max(height, width))
 
-    def __init__(self, T_init: np.ndarray, K: np.ndarray, targets: list[RefineTarget], cfg: RefineConfig, seed: int):
+
+def scale_intrinsics(K: np.ndarray, s: float) -> np.ndarray:
+    """Intrinsics of the image resized by ``s`` (pixel centres at integers: u' = s (u + 0.5) - 0.5)."""
+    K2 = np.asarray(K, dtype=np.float64).copy()
+    K2[:2, :2] *= s
+    K2[:2, 2] = s * (K2[:2, 2] + 0.5) - 0.5
+    return K2
+
+
+def resize_mask(mask: np.ndarray, s: float) -> np.ndarray:
+    """Area-resample a bool mask by ``s`` (a low-resolution pixel is set when half of it is covered)."""
+    if s == 1.0:
+        return np.asarray(mask, dtype=bool)
+    h, w = mask.shape
+    size = (max(1, round(w * s)), max(1, round(h * s)))
+    return cv2.resize(np.asarray(mask, np.float32), size, interpolation=cv2.INTER_AREA) >= 0.5
+
+
+class _Problem:
+    """Padded, batched tensors of all objects and hypotheses; evaluates per-object losses at local poses.
+
+    Everything runs at the working resolution (``max_side``); ``delta`` and the reported losses are
+    converted so that the outside world only sees full-resolution pixels.
+    """
+
+    def __init__(self, T_inits: list[np.ndarray], K: np.ndarray, targets: list[RefineTarget], cfg: RefineConfig,
+                 seed: int, occluders: np.ndarray | None):
         rng = np.random.default_rng(seed)
-        H, W = targets[0].mask.shape
-        self.H, self.W, self.cfg = H, W, cfg
-        T_cw0 = geometry.invert(T_init)
-        n_obj = len(targets)
+        H0, W0 = targets[0].mask.shape
+        s = working_scale(H0, W0, cfg.max_side)
+        masks = [resize_mask(t.mask, s) for t in targets]
+        H, W = masks[0].shape
+        for m, t in zip(masks, targets):
+            if not m.any() and t.mask.any():  # a sliver lost by resampling: keep its centroid pixel
+                ys, xs = np.nonzero(t.mask)
+                m[min(H - 1, int(s * ys.mean())), min(W - 1, int(s * xs.mean()))] = True
+        self.H, self.W, self.cfg, self.scale = H, W, cfg, s
+        self.unit = s * s  # full-resolution squared pixels -> working squared pixels
+        occ = None if occluders is None or not cfg.occlusion_aware else resize_mask(occluders, s)
+        n_obj, n_hyp = len(targets), len(T_inits)
         n_pts = max(min(cfg.max_points, len(t.points_w)) for t in targets)
-        n_pix = max(min(cfg.max_mask_pixels, int(backward_pixels(t.mask, cfg.backward_pixels).sum())) for t in targets)
-        pts = np.zeros((n_obj, n_pts, 3), np.float64)
+        n_pix = max(max(1, min(cfg.max_mask_pixels, int(backward_pixels(m, cfg.backward_pixels).sum()))) for m in masks)
+        pts_w = np.zeros((n_obj, n_pts, 3), np.float64)
         pts_valid = np.zeros((n_obj, n_pts), bool)
         pix = np.full((n_obj, n_pix, 2), -_BIG, np.float32)
         pix_valid = np.zeros((n_obj, n_pix), bool)
-        nearest = np.empty((n_obj, H * W, 2), np.float32)
-        inside = np.empty((n_obj, H * W), bool)
-        for i, t in enumerate(targets):
+        nearest = np.zeros((n_obj, H * W, 2), np.float32)
+        outside = np.ones((n_obj, H * W), bool)
+        counted = np.ones((n_obj, H * W), bool)
+        for i, (t, m) in enumerate(zip(targets, masks)):
             p = np.asarray(t.points_w, dtype=np.float64)
             if len(p) > cfg.max_points:
                 p = p[np.sort(rng.choice(len(p), cfg.max_points, replace=False))]
-            pts[i, : len(p)] = geometry.transform_points(T_cw0, p)
+            pts_w[i, : len(p)] = p
             pts_valid[i, : len(p)] = True
-            ys, xs = np.nonzero(backward_pixels(t.mask, cfg.backward_pixels))
+            ys, xs = np.nonzero(backward_pixels(m, cfg.backward_pixels))
             if len(xs) > cfg.max_mask_pixels:
                 keep = np.sort(rng.choice(len(xs), cfg.max_mask_pixels, replace=False))
                 ys, xs = ys[keep], xs[keep]
             pix[i, : len(xs)] = np.stack([xs, ys], axis=1)
             pix_valid[i, : len(xs)] = True
-            nearest[i] = nearest_mask_pixels(t.mask).reshape(-1, 2)
-            inside[i] = t.mask.reshape(-1)
-        self.pts = torch.from_numpy(pts.astype(np.float32))
-        self.pts_valid = torch.from_numpy(pts_valid)
-        self.pix = torch.from_numpy(pix)
+            if m.any():
+                nearest[i] = nearest_mask_pixels(m).reshape(-1, 2)
+                outside[i] = ~m.reshape(-1)
+            if occ is not None:
+                counted[i] = ~(occ & ~m).reshape(-1)  # pixels of *another* segment hide what is behind them
+        # points in each hypothesis' initial camera frame: (B, n_obj, n_pts, 3)
+        pts_c = np.stack([geometry.transform_points(geometry.invert(T), pts_w.reshape(-1, 3)).reshape(pts_w.shape)
+                          for T in T_inits])
+        self.pts = torch.from_numpy(pts_c.astype(np.float32))
+        self.pts_valid = torch.from_numpy(pts_valid).expand(n_hyp, -1, -1)
+        self.pix = torch.from_numpy(pix).expand(n_hyp, -1, -1, -1).reshape(n_hyp * n_obj, n_pix, 2)
         self.pix_valid = torch.from_numpy(pix_valid)
         self.n_pix = self.pix_valid.sum(1).clamp_min(1)
         self.nearest = torch.from_numpy(nearest).reshape(-1, 2)
-        self.outside = torch.from_numpy(~inside).reshape(-1)
-        self.offset = (torch.arange(n_obj) * (H * W)).unsqueeze(1)
-        self.K = torch.tensor(np.asarray(K, dtype=np.float32))
+        self.outside = torch.from_numpy(outside).reshape(-1)
+        self.counted = torch.from_numpy(counted).reshape(-1)
+        self.offset = (torch.arange(n_obj) * (H * W)).view(1, n_obj, 1)
+        self.K = torch.tensor(scale_intrinsics(K, s), dtype=torch.float32)
+        self.n_hyp, self.n_obj = n_hyp, n_obj
+        self.nn_idx: torch.Tensor | None = None
 
-    def losses(self, q: torch.Tensor, t: torch.Tensor) -> torch.Tensor:
-        """(n_obj,) dual-path loss of each object at the local pose (q, t)."""
+    def losses(self, q: torch.Tensor, t: torch.Tensor, delta: float, refresh: bool = True) -> torch.Tensor:
+        """(B, n_obj) dual-path loss of each object at the local poses (q (B, 4), t (B, 3)), in
+        working-resolution squared pixels; ``delta`` in full-resolution pixels. ``refresh=False``
+        keeps the backward path's previous nearest-point correspondences."""
         cfg, K = self.cfg, self.K
-        R = _quat_to_rotmat(q)
-        pc = (self.pts - t) @ R  # R^T (p - t), row-vector form
+        delta = delta * self.scale
+        R = _quat_to_rotmat(q)  # (B, 3, 3)
+        pc = torch.einsum("bopk,bkj->bopj", self.pts - t[:, None, None, :], R)  # R^T (p - t), row form
         z = pc[..., 2]
         front = self.pts_valid & (z > cfg.min_depth)
         zs = torch.where(front, z, torch.ones_like(z))
@@ -208,36 +278,77 @@ class _Problem:
         v = K[1, 1] * pc[..., 1] / zs + K[1, 2]
         uv = torch.stack([u, v], dim=-1)
         # forward: projected points inside the image -> nearest mask pixel (the mask cannot show
-        # parts outside the image, so those points carry no evidence)
+        # parts outside the image, nor parts hidden behind another segment: those carry no evidence)
         ui, vi = torch.round(u.detach()).long(), torch.round(v.detach()).long()
         in_img = front & (ui >= 0) & (ui < self.W) & (vi >= 0) & (vi < self.H)
         flat = (vi.clamp(0, self.H - 1) * self.W + ui.clamp(0, self.W - 1)) + self.offset
+        use = in_img & self.counted[flat]
         resid = (uv - self.nearest[flat]) * self.outside[flat].unsqueeze(-1)
-        fwd_terms = huber_sq((resid**2).sum(-1), cfg.huber_delta) * in_img
-        fwd = fwd_terms.sum(1) / in_img.sum(1).clamp_min(1)
+        fwd_terms = huber_sq((resid**2).sum(-1), delta) * use
+        fwd = fwd_terms.sum(-1) / use.sum(-1).clamp_min(1)
         # backward: mask pixels -> nearest projected point (points behind the camera are absent).
         # The correspondence is found without gradient, then the distance to it is differentiated:
         # O(M) backward instead of cdist's O(M x N).
-        uv_b = torch.where(front.unsqueeze(-1), uv, torch.full_like(uv, _BIG))
-        with torch.no_grad():
-            nn_idx = torch.cdist(self.pix, uv_b).argmin(dim=2)
-        nn_uv = torch.gather(uv_b, 1, nn_idx.unsqueeze(-1).expand(-1, -1, 2))
-        d2 = ((self.pix - nn_uv) ** 2).sum(-1)
-        bwd = (huber_sq(d2, cfg.huber_delta) * self.pix_valid).sum(1) / self.n_pix
+        uv_b = torch.where(front.unsqueeze(-1), uv, torch.full_like(uv, _BIG)).reshape(self.n_hyp * self.n_obj, -1, 2)
+        if refresh or self.nn_idx is None:
+            with torch.no_grad():
+                self.nn_idx = torch.cdist(self.pix, uv_b).argmin(dim=2).unsqueeze(-1).expand(-1, -1, 2)
+        nn_uv = torch.gather(uv_b, 1, self.nn_idx)
+        d2 = ((self.pix - nn_uv) ** 2).sum(-1).reshape(self.n_hyp, self.n_obj, -1)
+        bwd = (huber_sq(d2, delta) * self.pix_valid).sum(-1) / self.n_pix
         # an object with no point in front of the camera cannot be scored: worst possible loss
-        no_front = front.sum(1) == 0
-        worst = torch.full_like(fwd, 4.0 * cfg.huber_delta * max(self.H, self.W))
+        no_front = front.sum(-1) == 0
+        worst = torch.full_like(fwd, 4.0 * delta * max(self.H, self.W))
         return torch.where(no_front, worst, fwd + bwd)
 
 
-def _weights(obj_losses: torch.Tensor, cfg: RefineConfig, active: bool) -> torch.Tensor:
-    """1 for objects within ``outlier_factor`` x the median loss (or below ``outlier_min_loss``),
-    0 for outliers (moved objects); all ones while masking is not ``active``."""
+def _weights(obj_losses: torch.Tensor, cfg: RefineConfig, active: bool, unit: float) -> torch.Tensor:
+    """(B, n_obj): 1 for objects within ``outlier_factor`` x their hypothesis' median loss (or below
+    ``outlier_min_loss``), 0 for outliers (moved objects); all ones while masking is not ``active``."""
     losses = obj_losses.detach()
     if not active:
         return torch.ones_like(losses)
-    limit = torch.clamp(cfg.outlier_factor * losses.quantile(0.5), min=cfg.outlier_min_loss)
+    limit = torch.clamp(cfg.outlier_factor * losses.nan_to_num(_BIG).quantile(0.5, dim=-1, keepdim=True),
+                        min=cfg.outlier_min_loss * unit)
     return (losses <= limit).float()
+
+
+def _delta_at(cfg: RefineConfig, it: int) -> float:
+    """Huber threshold of step ``it`` (1-based): geometric decay from ``huber_delta_start`` to ``huber_delta``."""
+    if cfg.huber_delta_start <= cfg.huber_delta or cfg.anneal_steps <= 0:
+        return cfg.huber_delta
+    f = min(1.0, (it - 1) / cfg.anneal_steps)
+    return cfg.huber_delta_start * (cfg.huber_delta / cfg.huber_delta_start) ** f
+
+
+def refine_poses(
+    T_inits: list[np.ndarray],
+    K: np.ndarray,
+    targets: list[RefineTarget],
+    config: RefineConfig | None = None,
+    seed: int = 0,
+    occluders: np.ndarray | None = None,
+) -> list[RefineResult]:
+    """Refine every pose of ``T_inits`` (camera-to-world hypotheses) by minimising the dual-path 2D
+    ICP loss over ``targets``, all hypotheses in one batch (each has its own parameters; Adam is
+    per-coordinate, so they do not interact). ``occluders``: bool (H, W) union of all query segments
+    (matched or not) for the occlusion-aware forward path.
+
+    Never raises on numerical trouble: a hypothesis whose loss or pose turns non-finite returns its
+    initial pose with a reason.
+    """
+    cfg = config or RefineConfig()
+    if not targets:
+        raise ValueError("refine_poses needs at least one target")
+    if not T_inits:
+        raise ValueError("refine_poses needs at least one initial pose")
+    T_inits = [geometry.check_pose(T, "initial pose") for T in T_inits]
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)  # a step is a few small ops: extra threads only add sync overhead (5-30x measured)
+    try:
+        return _optimise(T_inits, K, targets, cfg, seed, occluders)
+    finally:
+        torch.set_num_threads(threads)
 
 
 def refine_pose(
@@ -246,72 +357,81 @@ def refine_pose(
     targets: list[RefineTarget],
     config: RefineConfig | None = None,
     seed: int = 0,
+    occluders: np.ndarray | None = None,
 ) -> RefineResult:
-    """Refine ``T_init`` (camera-to-world) by minimising the dual-path 2D ICP loss over ``targets``.
-
-    Never raises on numerical trouble: a non-finite loss or pose returns ``T_init`` with a reason.
-    """
-    cfg = config or RefineConfig()
-    if not targets:
-        raise ValueError("refine_pose needs at least one target")
-    T_init = geometry.check_pose(T_init, "initial pose")
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)  # a step is a few small ops: extra threads only add sync overhead (5-30x measured)
-    try:
-        return _optimise(T_init, K, targets, cfg, seed)
-    finally:
-        torch.set_num_threads(threads)
+    """Refine one pose ``T_init`` (camera-to-world); see :func:`refine_poses`."""
+    return refine_poses([T_init], K, targets, config, seed, occluders)[0]
 
 
-def _optimise(T_init: np.ndarray, K: np.ndarray, targets: list[RefineTarget], cfg: RefineConfig, seed: int) -> RefineResult:
-    problem = _Problem(T_init, K, targets, cfg, seed)
-    q = torch.tensor([1.0, 0.0, 0.0, 0.0], requires_grad=True)
-    t = torch.zeros(3, requires_grad=True)
+def _optimise(T_inits: list[np.ndarray], K: np.ndarray, targets: list[RefineTarget], cfg: RefineConfig, seed: int,
+              occluders: np.ndarray | None) -> list[RefineResult]:
+    problem = _Problem(T_inits, K, targets, cfg, seed, occluders)
+    B, unit = len(T_inits), problem.unit
+    q = torch.tensor([[1.0, 0.0, 0.0, 0.0]] * B, requires_grad=True)
+    t = torch.zeros(B, 3, requires_grad=True)
     opt = torch.optim.Adam([{"params": [q], "lr": cfg.lr_rotation}, {"params": [t], "lr": cfg.lr_translation}])
     sched = torch.optim.lr_scheduler.ReduceLROnPlateau(
         opt, factor=0.5, patience=cfg.plateau_patience, threshold=cfg.plateau_threshold
     )
-    ids = [tg.landmark_id for tg in targets]
-    best = (float("inf"), q.detach().clone(), t.detach().clone())
-    initial_loss = float("nan")
+    best_loss = torch.full((B,), float("inf"))
+    best_q, best_t = q.detach().clone(), t.detach().clone()
+    initial = torch.full((B,), float("nan"))
+    alive = torch.ones(B, dtype=torch.bool)
+    why: list[str | None] = [None] * B
     it = 0
     for it in range(1, cfg.max_iterations + 1):
+        delta = _delta_at(cfg, it)
         opt.zero_grad()
-        obj = problem.losses(q, t)
-        w = _weights(obj, cfg, active=it > cfg.outlier_warmup)
-        loss = (obj * w).sum() / w.sum().clamp_min(1.0)
-        value = float(loss.detach())
+        obj = problem.losses(q, t, delta, refresh=(it - 1) % max(1, cfg.correspondence_every) == 0)
+        w = _weights(obj, cfg, it > cfg.outlier_warmup, unit)
+        loss = (obj * w).sum(-1) / w.sum(-1).clamp_min(1.0)  # (B,)
+        value = loss.detach()
         if it == 1:
-            initial_loss = value
-        if not np.isfinite(value):
-            return _diverged(T_init, initial_loss, it, "loss became non-finite")
-        if value < best[0]:
-            best = (value, q.detach().clone(), t.detach().clone())
-        loss.backward()
-        if not (torch.isfinite(q.grad).all() and torch.isfinite(t.grad).all()):
-            return _diverged(T_init, initial_loss, it, "non-finite gradient")
+            initial = value.clone()
+        finite = torch.isfinite(value)
+        for b in torch.nonzero(alive & ~finite).flatten().tolist():
+            alive[b], why[b] = False, "loss became non-finite"
+        if not alive.any():
+            break
+        annealed = it > cfg.anneal_steps or cfg.huber_delta_start <= cfg.huber_delta
+        improved = alive & (value < best_loss) if annealed else alive  # best only counts at the final delta
+        best_loss = torch.where(improved, value, best_loss)
+        best_q[improved], best_t[improved] = q.detach()[improved], t.detach()[improved]
+        torch.where(alive, loss, torch.zeros_like(loss)).sum().backward()
+        bad = alive & ~(torch.isfinite(q.grad).all(-1) & torch.isfinite(t.grad).all(-1))
+        for b in torch.nonzero(bad).flatten().tolist():
+            alive[b], why[b] = False, "non-finite gradient"
+        with torch.no_grad():
+            q.grad[~alive] = 0.0
+            t.grad[~alive] = 0.0
         opt.step()
-        sched.step(value)
+        if annealed:
+            sched.step(float(value[alive].sum()) if alive.any() else 0.0)
         if opt.param_groups[0]["lr"] < cfg.lr_rotation * 0.5**cfg.lr_reductions * 1.0001:
             break
-    _, q_best, t_best = best
     with torch.no_grad():
-        obj = problem.losses(q_best, t_best)
-        w = _weights(obj, cfg, active=True)
-        final = float((obj * w).sum() / w.sum().clamp_min(1.0))
-    qn = q_best.numpy().astype(np.float64)
-    if not (np.all(np.isfinite(qn)) and np.linalg.norm(qn) > 1e-8 and np.all(np.isfinite(t_best.numpy()))):
-        return _diverged(T_init, initial_loss, it, "pose became non-finite")
-    delta = geometry.qt_to_pose(qn / np.linalg.norm(qn), t_best.numpy().astype(np.float64))
-    return RefineResult(
-        T_wc=geometry.compose(T_init, delta),
-        loss=final,
-        initial_loss=initial_loss,
-        object_losses={i: float(v) for i, v in zip(ids, obj.tolist())},
-        outliers=[i for i, keep in zip(ids, w.tolist()) if keep == 0.0],
-        iterations=it,
-    )
-
-
-def _diverged(T_init: np.ndarray, initial_loss: float, it: int, why: str) -> RefineResult:
-    return RefineResult(T_init.copy(), float("inf"), initial_loss, iterations=it, reason=f"refinement diverged: {why}")
+        obj = problem.losses(best_q, best_t, cfg.huber_delta)
+        w = _weights(obj, cfg, True, unit)
+        final = (obj * w).sum(-1) / w.sum(-1).clamp_min(1.0)
+    ids = [tg.landmark_id for tg in targets]
+    out = []
+    for b, T_init in enumerate(T_inits):
+        qn = best_q[b].numpy().astype(np.float64)
+        tn = best_t[b].numpy().astype(np.float64)
+        if why[b] is None and not (np.all(np.isfinite(qn)) and np.linalg.norm(qn) > 1e-8 and np.all(np.isfinite(tn))
+                                   and np.isfinite(float(final[b]))):
+            why[b] = "pose became non-finite"
+        if why[b] is not None:
+            out.append(RefineResult(T_init.copy(), float("inf"), float(initial[b]) / unit, iterations=it,
+                                    reason=f"refinement diverged: {why[b]}"))
+            continue
+        delta_T = geometry.qt_to_pose(qn / np.linalg.norm(qn), tn)
+        out.append(RefineResult(
+            T_wc=geometry.compose(T_init, delta_T),
+            loss=float(final[b]) / unit,
+            initial_loss=float(initial[b]) / unit,
+            object_losses={i: float(v) / unit for i, v in zip(ids, obj[b].tolist())},
+            outliers=[i for i, keep in zip(ids, w[b].tolist()) if keep == 0.0],
+            iterations=it,
+        ))
+    return out

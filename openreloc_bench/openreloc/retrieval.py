@@ -8,6 +8,14 @@ Lower is better; unlike plain IoU it still ranks frames whose boxes do not overl
 
 The ``visibility`` ranking (an ablation) picks, within the same co-visible subset, the frame
 where the shared landmarks are most visible (mean visibility), ignoring where they appear.
+
+Beyond the paper (:class:`CoarseConfig`, each switchable back to the paper-literal single prior):
+queries are deliberately taken from new viewpoints (>= 0.3 m and >= 20 deg from every mapping
+frame), so the single best reference frame is often 1-3 m / 30-50 deg away, outside the basin of
+the 2D ICP. The coarse stage therefore proposes several hypotheses -- the ``top_frames`` best ranked
+reference frames (all frames sharing a landmark, ranked by shared count then DIoU) and a PnP pose
+from object correspondences (mask centroids <-> landmark centres, the "rough estimate" of centre
+alignment the paper mentions) -- and the refinement keeps the one with the lowest final ICP loss.
 """
 
 from __future__ import annotations
@@ -15,11 +23,32 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Literal
 
+import cv2
 import numpy as np
 
+from openreloc_bench import geometry
 from openreloc_bench.openreloc.map import ReferenceFrame
 
 Ranking = Literal["diou", "visibility"]
+
+
+@dataclass
+class CoarseConfig:
+    """Pose hypotheses of the coarse stage (see the module docstring)."""
+
+    top_frames: int = 3
+    """Beyond the paper: the best this-many reference frames each start a refinement; the lowest final
+    loss wins. 1 = the paper's single DIoU-best frame."""
+    pnp: bool = True
+    """Beyond the paper: add a PnP hypothesis from mask centroids to landmark centres (False = paper)."""
+    pnp_min_objects: int = 4
+    """Matched objects needed for the PnP hypothesis (3 points give up to 4 ambiguous poses)."""
+    pnp_threshold: float = 0.08
+    """RANSAC inlier threshold of the PnP, as a share of the image diagonal (centroids of partly
+    occluded or large objects are off by tens of pixels)."""
+    pnp_iterations: int = 2
+    """Re-solves pairing each mask centroid with the centroid of its landmark's in-image points at the
+    previous PnP pose (border-truncated objects); 0 = landmark centres only."""
 
 
 def diou_distance(box_a: np.ndarray, box_b: np.ndarray) -> np.ndarray:
@@ -51,6 +80,8 @@ class Retrieval:
     ranking: str
     candidates: list[tuple[int, float]] = field(default_factory=list)
     """(mapping frame index, score) of the co-visible subset, best first."""
+    ranked: list[ReferenceFrame] = field(default_factory=list)
+    """Every frame sharing a matched landmark: most shared first, then by score (``ranked[0] is frame``)."""
 
 
 def retrieve_reference(
@@ -61,30 +92,82 @@ def retrieve_reference(
     if ranking not in ("diou", "visibility"):
         raise ValueError(f"unknown ranking {ranking!r} (use 'diou' or 'visibility')")
     matched = set(query_boxes)
-    shared_counts = [len(matched.intersection(f.boxes)) for f in frames]
-    best_count = max(shared_counts, default=0)
-    if best_count == 0:
-        return None
-    scored: list[tuple[float, int, ReferenceFrame, list[int]]] = []
-    for k, (f, n) in enumerate(zip(frames, shared_counts)):
-        if n != best_count:
-            continue
+    scored: list[tuple[int, float, int, ReferenceFrame, list[int]]] = []
+    for k, f in enumerate(frames):
         ids = sorted(matched.intersection(f.boxes))
+        if not ids:
+            continue
         if ranking == "diou":
             q = np.stack([query_boxes[i] for i in ids])
             r = np.stack([f.boxes[i] for i in ids])
-            score = float(diou_distance(q, r).mean())
-            key = score
+            key = float(diou_distance(q, r).mean())
         else:
-            score = float(np.mean([f.visibility.get(i, 0.0) for i in ids]))
-            key = -score
-        scored.append((key, k, f, ids))
-    scored.sort(key=lambda s: (s[0], s[1]))  # ties: earlier frame, so results are deterministic
-    key, _, frame, ids = scored[0]
+            key = -float(np.mean([f.visibility.get(i, 0.0) for i in ids]))
+        scored.append((-len(ids), key, k, f, ids))
+    if not scored:
+        return None
+    scored.sort(key=lambda s: s[:3])  # most shared, then score; ties: earlier frame (deterministic)
+    sign = 1.0 if ranking == "diou" else -1.0
+    _, key, _, frame, ids = scored[0]
     return Retrieval(
         frame=frame,
         shared=ids,
-        score=key if ranking == "diou" else -key,
+        score=sign * key,
         ranking=ranking,
-        candidates=[(f.index, s if ranking == "diou" else -s) for s, _, f, _ in scored],
+        candidates=[(f.index, sign * sc) for n, sc, _, f, _ in scored if n == scored[0][0]],
+        ranked=[f for *_, f, _ in scored],
     )
+
+
+def _solve_pnp(p3: np.ndarray, p2: np.ndarray, K: np.ndarray, thr: float) -> np.ndarray | None:
+    """T_cw from RANSAC (SQPnP) + Levenberg-Marquardt on the inliers, or None."""
+    p3 = np.ascontiguousarray(p3, dtype=np.float64).reshape(-1, 1, 3)
+    p2 = np.ascontiguousarray(p2, dtype=np.float64).reshape(-1, 1, 2)
+    try:
+        ok, rvec, tvec, inliers = cv2.solvePnPRansac(p3, p2, K, None, iterationsCount=200, reprojectionError=thr,
+                                                     confidence=0.999, flags=cv2.SOLVEPNP_SQPNP)
+        if not ok or inliers is None or len(inliers) < 4:
+            return None
+        idx = inliers.ravel()
+        rvec, tvec = cv2.solvePnPRefineLM(p3[idx], p2[idx], K, None, rvec, tvec)
+    except cv2.error:
+        return None
+    T_cw = geometry.make_pose(cv2.Rodrigues(rvec)[0], tvec.ravel())
+    return T_cw if np.all(np.isfinite(T_cw)) else None
+
+
+def pnp_prior(centroids: np.ndarray, truncated: np.ndarray, points: list[np.ndarray], K: np.ndarray,
+              image_size: tuple[int, int], cfg: CoarseConfig) -> np.ndarray | None:
+    """Camera-to-world pose from object correspondences: query mask centroids (``centroids``, (M, 2))
+    <-> the matched landmarks' ``points``; None when there are too few or no consensus.
+
+    A mask cut by the image border only shows part of its object, so its centroid is not the
+    projection of the landmark centre. The first solve uses the untruncated objects (all when fewer
+    than 4); each of ``pnp_iterations`` further solves pairs every mask centroid with the centroid of
+    the landmark points that project inside the image at the previous pose.
+    """
+    K = np.asarray(K, dtype=np.float64)
+    centroids = np.asarray(centroids, dtype=np.float64)
+    if len(centroids) < max(4, cfg.pnp_min_objects):
+        return None
+    w, h = image_size
+    thr = cfg.pnp_threshold * float(np.hypot(w, h))
+    centres = np.stack([np.asarray(p, np.float64).mean(0) for p in points])
+    use = ~np.asarray(truncated, bool) if int((~np.asarray(truncated, bool)).sum()) >= 4 else np.ones(len(centroids), bool)
+    T_cw = _solve_pnp(centres[use], centroids[use], K, thr)
+    for _ in range(cfg.pnp_iterations):
+        if T_cw is None:
+            break
+        visible = []
+        T_wc_prev = geometry.invert(T_cw)
+        for p in points:
+            uv, z = geometry.project(K, T_wc_prev, p)
+            inside = (z > 1e-3) & (uv[:, 0] >= -0.5) & (uv[:, 0] < w - 0.5) & (uv[:, 1] >= -0.5) & (uv[:, 1] < h - 0.5)
+            visible.append(np.asarray(p, np.float64)[inside].mean(0) if inside.any() else None)
+        if any(v is None for v in visible):
+            break
+        T_next = _solve_pnp(np.stack(visible), centroids, K, thr)
+        T_cw = T_next if T_next is not None else T_cw
+    if T_cw is None or np.any(geometry.transform_points(T_cw, centres)[:, 2] <= 0):
+        return None
+    return geometry.invert(T_cw)

@@ -104,3 +104,13 @@ def test_a_landmark_is_matched_at_most_once() -> None:
 def test_without_language_every_object_takes_its_visual_top1() -> None:
     matches = associate([obj(unit(3), [0, 0, 5, 5]), obj(unit(2), [9, 0, 20, 5])], IDS, DESC, GRAPH, AssociationConfig())
     assert [(m.landmark, m.how, m.text_sim) for m in matches] == [(5, "visual", None), (4, "visual", None)]
+
+
+def test_oracle_matches_use_instance_ids_and_skip_unknown_or_invalid() -> None:
+    from openreloc_bench.openreloc.association import oracle_matches
+
+    objects = [obj(unit(0), [0, 0, 1, 1]) for _ in range(4)]
+    for o, inst in zip(objects, [3, 9, None, 5]):
+        o.instance_id = inst
+    got = oracle_matches(objects, IDS, invalid={5})
+    assert [(m.query, m.landmark, m.how) for m in got] == [(0, 3, "oracle")]

@@ -17,7 +17,9 @@ from openreloc_bench.vision.base import register_encoder
 
 register_encoder("mean-color")(MeanColorEncoder)
 HW = (96, 128)
-MAPPING = {"fusion": {"voxel_size": 0.05}}
+# the frequency rule alone (the paper's): the shape cue would also drop the walls, leaving this small
+# room's views with too few landmarks
+MAPPING = {"fusion": {"voxel_size": 0.05}, "filtering": {"shape_filter": False, "max_frequency": 0.9}}
 
 
 @pytest.fixture(scope="module")
@@ -57,8 +59,9 @@ def test_localizes_a_held_out_view_with_diagnostics(map_dir: Path) -> None:
     assert " m " in d["explanation"]
 
 
-@pytest.mark.xfail(reason="known weakness: on this 96x128 room with 3 objects (one occluding another) "
-                   "the refinement moves a 24 cm / 11 deg prior to ~60 cm / 55 deg; under investigation")
+@pytest.mark.xfail(reason="not a refinement problem (occlusion is covered by test_refine): this map loses the "
+                   "table and the box on it (mapping: 8 of 9 instances), so 2 of the view's 3 furniture objects "
+                   "have no landmark and the mean-colour test encoder matches them to walls")
 def test_held_out_view_is_within_25cm(map_dir: Path) -> None:
     q, T_gt = held_out_query()
     res = localizer(map_dir).localize(q)
@@ -111,3 +114,53 @@ def test_bad_inputs_are_failures_with_reasons(map_dir: Path) -> None:
 def test_unknown_config_key_is_a_config_error() -> None:
     with pytest.raises(ConfigError, match="no_such_switch"):
         create_method("openreloc", no_such_switch=True)
+
+
+def test_oracle_association_diagnostic_matches_by_instance_id(map_dir: Path) -> None:
+    q, _ = held_out_query(3)
+    _, _, inst = render(ROOM, q.K, camera_poses(32)[7], HW)
+    q = QueryFrame(q.name, q.color, q.K, inst)  # walls too: the oracle needs no encoder
+    m = localizer(map_dir, association={"oracle": True}, refinement={"max_iterations": 10})
+    res = m.localize(q)
+    assert isinstance(res, PoseEstimate), res
+    d = res.diagnostics
+    assert d["matches"] and all(x["landmark"] == x["query_instance"] and x["how"] == "oracle" for x in d["matches"])
+    assert "encode" not in d["timings"] and "describe" not in d["timings"]
+    sources = [h["source"] for h in d["hypotheses"]]
+    assert d["chosen"] in sources and sum(s.startswith("reference:") for s in sources) == 3
+    best = min(h["loss"] for h in d["hypotheses"] if h["loss"] is not None)
+    assert d["refine"]["loss"] == pytest.approx(best)
+    predicted = QueryFrame(q.name, q.color, q.K, None)
+    assert "oracle-mask track" in m.localize(predicted).reason
+
+
+def test_no_coarse_refines_only_the_uninformed_start(map_dir: Path) -> None:
+    q, _ = held_out_query()
+    res = localizer(map_dir, no_coarse=True, refinement={"max_iterations": 5}).localize(q)
+    assert isinstance(res, PoseEstimate)
+    assert [h["source"] for h in res.diagnostics["hypotheses"]] == ["uninformed"]
+
+
+def test_paper_literal_coarse_stage_has_one_hypothesis(map_dir: Path) -> None:
+    q, _ = held_out_query()
+    res = localizer(map_dir, coarse={"top_frames": 1, "pnp": False}, no_refine=True).localize(q)
+    assert isinstance(res, PoseEstimate) and "hypotheses" not in res.diagnostics
+    assert res.diagnostics["chosen"] == f"reference:{res.diagnostics['reference_frame']['index']}"
+
+
+def test_text_cache_encodes_each_phrase_once() -> None:
+    from openreloc_bench.openreloc.method import TextCache
+
+    class Counting(MeanColorEncoder):
+        calls: list[list[str]] = []
+
+        def encode_texts(self, texts):
+            self.calls.append(list(texts))
+            return super().encode_texts(texts)
+
+    inner = Counting()
+    cache = TextCache(inner)
+    a = cache.encode_texts(["a red sofa", "a blue sofa", "a red sofa"])
+    b = cache.encode_texts(["a blue sofa"])
+    assert inner.calls == [["a red sofa", "a blue sofa"]]
+    assert np.allclose(a[1], b[0]) and a.shape == (3, inner.dim) and cache.encode_texts([]).shape == (0, inner.dim)

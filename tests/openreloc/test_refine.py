@@ -15,6 +15,7 @@ from openreloc_bench.openreloc.refine import (
     huber_sq,
     nearest_mask_pixels,
     refine_pose,
+    refine_poses,
 )
 from tests.openreloc.boxworld import ROOM, render
 
@@ -111,3 +112,59 @@ def test_non_finite_points_return_the_prior_with_a_reason() -> None:
 def test_refine_needs_targets() -> None:
     with pytest.raises(ValueError):
         refine_pose(T_GT, K, [], RefineConfig())
+
+
+def perturbed(seed: int, rot_sd: float, trans_sd: float) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    delta = geometry.make_pose(geometry.quat_to_rotmat(np.r_[1.0, rng.normal(0, rot_sd, 3)]), rng.normal(0, trans_sd, 3))
+    return geometry.compose(T_GT, delta)
+
+
+def test_occlusion_aware_forward_path_converges_where_the_literal_one_is_dragged() -> None:
+    """The box stands on the table and hides part of it: the literal forward path pulls the table's
+    hidden points onto the table's mask; ignoring points on another segment's pixels does not.
+    Measured from a 65 cm / 4 deg start: literal 19 cm / 2.2 deg, occlusion-aware 8 cm / 0.7 deg."""
+    _, _, inst = render(ROOM, K, T_GT, HW)
+    targets = targets_at(T_GT)
+    assert {10, 13} <= {t.landmark_id for t in targets}
+    T0 = perturbed(2, 0.05, 0.2)
+    literal = refine_pose(T0, K, targets, RefineConfig(occlusion_aware=False), occluders=inst > 0)
+    aware = refine_pose(T0, K, targets, RefineConfig(occlusion_aware=True), occluders=inst > 0)
+    te_l, _ = geometry.pose_errors(T_GT, literal.T_wc)
+    te_a, re_a = geometry.pose_errors(T_GT, aware.T_wc)
+    assert te_a < 0.12 and re_a < 1.5 and te_a < te_l, (te_a, re_a, te_l)
+
+
+def test_batched_hypotheses_match_separate_runs() -> None:
+    targets = targets_at(T_GT)
+    starts = [perturbed(0, 0.03, 0.1), perturbed(1, 0.03, 0.1)]
+    # the plateau rule watches the summed loss of all hypotheses, so compare with it disabled
+    fixed = RefineConfig(max_iterations=40, plateau_patience=10_000)
+    batched = refine_poses(starts, K, targets, fixed)
+    for T0, b in zip(starts, batched):
+        single = refine_pose(T0, K, targets, fixed)
+        assert np.allclose(single.T_wc, b.T_wc, atol=1e-4) and single.loss == pytest.approx(b.loss, rel=1e-3)
+
+
+def test_reduced_resolution_reports_full_resolution_losses() -> None:
+    """The same pose scored at full and half resolution: losses agree in full-resolution pixels."""
+    targets = targets_at(T_GT)
+    T0 = perturbed(0, 0.04, 0.15)
+    full = refine_pose(T0, K, targets, RefineConfig(max_iterations=0, max_side=0))
+    half = refine_pose(T0, K, targets, RefineConfig(max_iterations=0, max_side=80))
+    assert half.loss == pytest.approx(full.loss, rel=0.3) and full.loss > 5.0, (half.loss, full.loss)
+
+
+def test_one_diverging_hypothesis_does_not_stop_the_others() -> None:
+    targets = targets_at(T_GT)
+    bad = T_GT.copy()
+    bad[:3, 3] = [40.0, 40.0, 40.0]  # every object behind / far outside: worst loss, but finite
+    res = refine_poses([perturbed(0, 0.03, 0.1), bad], K, targets, RefineConfig(max_iterations=60))
+    assert res[0].reason is None and res[0].loss < res[1].loss
+    assert geometry.translation_error(T_GT, res[0].T_wc) < 0.1
+
+
+@pytest.mark.parametrize("delta_start", [0.0, 40.0])
+def test_huber_annealing_still_converges(delta_start: float) -> None:
+    res = refine_pose(perturbed(1, 0.03, 0.15), K, targets_at(T_GT), RefineConfig(huber_delta_start=delta_start))
+    assert res.reason is None and geometry.translation_error(T_GT, res.T_wc) < 0.1

@@ -5,8 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from openreloc_bench import geometry
 from openreloc_bench.openreloc.map import ReferenceFrame
-from openreloc_bench.openreloc.retrieval import diou_distance, retrieve_reference
+from openreloc_bench.openreloc.retrieval import CoarseConfig, diou_distance, pnp_prior, retrieve_reference
 
 
 @pytest.mark.parametrize(
@@ -50,3 +51,40 @@ def test_retrieval_prefers_most_shared_then_lowest_diou() -> None:
 def test_no_shared_landmark_gives_none() -> None:
     assert retrieve_reference({5: np.array([0, 0, 1, 1.0])}, [frame(0, {1: [0, 0, 1, 1]})]) is None
     assert retrieve_reference({5: np.array([0, 0, 1, 1.0])}, []) is None
+
+
+def test_ranked_lists_every_sharing_frame_most_shared_first() -> None:
+    query = {1: np.array([0, 0, 10, 10.0]), 2: np.array([20, 0, 30, 10.0]), 3: np.array([40, 0, 50, 10.0])}
+    frames = [
+        frame(0, {1: [0, 0, 10, 10], 2: [20, 0, 30, 10]}),
+        frame(1, {1: [5, 5, 15, 15], 2: [25, 5, 35, 15], 3: [45, 5, 55, 15]}),
+        frame(2, {1: [1, 0, 11, 10], 2: [21, 0, 31, 10], 3: [41, 0, 51, 10]}),
+        frame(3, {7: [0, 0, 10, 10]}),
+    ]
+    r = retrieve_reference(query, frames, "diou")
+    assert r is not None and [f.index for f in r.ranked] == [2, 1, 0] and r.ranked[0] is r.frame
+
+
+K = geometry.intrinsics_from_fov(160, 120, 60.0)
+T_TRUE = geometry.look_at([0.5, -3.0, 1.4], [0.0, 0.0, 0.8])
+
+
+def blob(centre: np.ndarray, n: int = 200, seed: int = 0) -> np.ndarray:
+    return centre + np.random.default_rng(seed).normal(0, 0.05, (n, 3))
+
+
+@pytest.mark.parametrize("iterations", [0, 2])
+def test_pnp_recovers_the_pose_from_object_centroids(iterations: int) -> None:
+    centres = np.array([[-1.0, 0.0, 0.5], [1.0, 0.5, 0.3], [0.2, 1.0, 1.5], [-0.5, -0.8, 1.0], [0.8, -0.5, 1.2]])
+    points = [blob(c, seed=i) for i, c in enumerate(centres)]
+    uv = np.stack([geometry.project(K, T_TRUE, p)[0].mean(0) for p in points])  # ~ projected centres
+    T = pnp_prior(uv, np.zeros(len(uv), bool), points, K, (160, 120), CoarseConfig(pnp_iterations=iterations))
+    assert T is not None
+    te, re = geometry.pose_errors(T_TRUE, T)
+    assert te < 0.1 and re < 2.0, (te, re)
+
+
+def test_pnp_needs_four_objects() -> None:
+    pts = [blob(np.array([x, 0.0, 1.0])) for x in (-1.0, 0.0, 1.0)]
+    uv = np.stack([geometry.project(K, T_TRUE, p)[0].mean(0) for p in pts])
+    assert pnp_prior(uv, np.zeros(3, bool), pts, K, (160, 120), CoarseConfig()) is None

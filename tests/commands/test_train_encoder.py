@@ -1,0 +1,39 @@
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "vision"))
+from vision_scenes import write_shapes_scene  # noqa: E402
+
+from openreloc_bench.cli import main  # noqa: E402
+from openreloc_bench.vision import create_encoder  # noqa: E402
+
+
+def test_train_encoder_end_to_end_on_tiny_scenes(tmp_path: Path) -> None:
+    for i in range(3):
+        write_shapes_scene(tmp_path / "data" / "train" / f"t{i}", seed=i)
+    write_shapes_scene(tmp_path / "data" / "eval" / "e0", seed=100)
+    out = tmp_path / "w"
+    rc = main(["train-encoder", "--out", str(out), "--data", str(tmp_path / "data"), "--epochs", "1", "--threads", "1"])
+    assert rc == 0
+    cfg = json.loads((out / "config.json").read_text())
+    assert cfg["tower"]["dim"] == 384 and cfg["data"]["train_crops"] > 0
+    assert cfg["data"]["categories"] and len(cfg["history"]) == 1
+    ev = json.loads((out / "evaluation.json").read_text())
+    assert 0.0 <= ev["zero_shot_top1"] <= 1.0 and "instance_recall1_within_scene" in ev
+    enc = create_encoder("offline", weights=str(out))
+    x = enc.encode_images([np.zeros((20, 20, 3), np.uint8), np.full((9, 30), 200, np.uint8)])
+    assert x.shape == (2, 384)
+    np.testing.assert_allclose(np.linalg.norm(x, axis=1), 1, atol=1e-5)
+    t = enc.encode_texts(["a red box"])
+    assert t.shape == (1, 384)
+
+
+def test_train_encoder_bad_arguments(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["train-encoder", "--out", str(tmp_path), "--epochs", "0"]) == 2
+    assert "must be >= 1" in capsys.readouterr().err

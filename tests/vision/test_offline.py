@@ -1,0 +1,79 @@
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from openreloc_bench.errors import ConfigError
+from openreloc_bench.vision import create_encoder
+from openreloc_bench.vision.offline import WEIGHTS_DIR
+
+
+@pytest.fixture(scope="module")
+def offline():
+    return create_encoder("offline")
+
+
+def _crops(n: int) -> list[np.ndarray]:
+    rng = np.random.default_rng(0)
+    return [rng.integers(0, 256, (int(rng.integers(6, 90)), int(rng.integers(6, 90)), 3), dtype=np.uint8) for _ in range(n)]
+
+
+def test_shapes_norms_batching_determinism(offline) -> None:
+    crops = _crops(9)
+    offline.batch_size = 4
+    x = offline.encode_images(crops)
+    offline.batch_size = 64
+    single = np.concatenate([offline.encode_images([c]) for c in crops])
+    assert x.shape == (9, 384) and x.dtype == np.float32
+    np.testing.assert_allclose(np.linalg.norm(x, axis=1), 1, atol=1e-5)
+    np.testing.assert_allclose(x, single, atol=1e-5)
+    np.testing.assert_allclose(offline.encode_images(crops), x, atol=1e-6)
+    assert not np.allclose(x[0], x[1])
+    odd = offline.encode_images([np.zeros((5, 5), np.uint8), np.zeros((5, 5, 3), np.uint8), np.zeros((5, 5, 4), np.float32)])
+    np.testing.assert_allclose(odd[0], odd[1], atol=1e-6)
+    np.testing.assert_allclose(odd[1], odd[2], atol=1e-6)
+
+
+def test_text_tower_is_minilm_and_cached(offline, monkeypatch: pytest.MonkeyPatch) -> None:
+    t = offline.encode_texts(["a red sofa", "a couch", "a stainless steel kettle"])
+    assert t.shape == (3, 384)
+    np.testing.assert_allclose(np.linalg.norm(t, axis=1), 1, atol=1e-5)
+    assert t[0] @ t[1] > t[0] @ t[2]  # real sentence embeddings: sofa ~ couch, not kettle
+    model = offline.text._load()
+    calls = []
+    orig = model.encode
+    monkeypatch.setattr(model, "encode", lambda texts, **kw: calls.append(list(texts)) or orig(texts, **kw))
+    again = offline.encode_texts(["a couch", "a red sofa", "a new phrase"])
+    assert calls == [["a new phrase"]]
+    np.testing.assert_allclose(again[:2], t[[1, 0]], atol=1e-6)
+
+
+def test_zero_shot_matches_a_coloured_patch(offline) -> None:
+    """Sanity on the trained tower: plain colour patches are nearer their colour words."""
+    red, blue = np.zeros((64, 64, 3), np.uint8), np.zeros((64, 64, 3), np.uint8)
+    red[8:56, 8:56] = (200, 30, 30)
+    blue[8:56, 8:56] = (30, 50, 200)
+    x = offline.encode_images([red, blue])
+    t = offline.encode_texts(["a red object", "a blue object"])
+    s = x @ t.T
+    assert s[0, 0] - s[0, 1] > s[1, 0] - s[1, 1]
+
+
+def test_committed_weights_metadata() -> None:
+    from generators.spec import TRAINING_SEED_MIN
+
+    cfg = json.loads((WEIGHTS_DIR / "config.json").read_text())
+    ev = json.loads((WEIGHTS_DIR / "evaluation.json").read_text())
+    seeds = cfg["data"]["train_seeds"] + cfg["data"]["eval_seeds"]
+    assert seeds and min(seeds) >= TRAINING_SEED_MIN
+    assert not set(cfg["data"]["train_seeds"]) & set(cfg["data"]["eval_seeds"])
+    assert ev["crops"] > 0 and 0 <= ev["zero_shot_top1"] <= 1
+    assert (WEIGHTS_DIR / "image_tower.pt").stat().st_size < 10 * 2**20
+
+
+def test_missing_weights_directory(tmp_path: Path) -> None:
+    with pytest.raises(ConfigError, match="train-encoder"):
+        create_encoder("offline", weights=str(tmp_path / "none"))

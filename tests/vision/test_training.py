@@ -1,0 +1,63 @@
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from openreloc_bench.vision import vocabulary as voc
+from openreloc_bench.vision.crops import CropSet
+from openreloc_bench.vision.training import _average_precision, _instance_recall, caption_table
+
+
+def _crops(categories: list[str], colours: list[str], descriptions: list[str] | None = None) -> CropSet:
+    n = len(categories)
+    return CropSet(
+        np.zeros((n, 8, 8, 3), np.uint8), scene=["s"] * n, split=["mapping"] * n, frame=["0"] * n,
+        object_id=list(range(1, n + 1)), category=categories, colour=colours, material=["wood"] * n,
+        description=descriptions or [""] * n,
+    )
+
+
+def test_captions_vary_and_never_use_held_out_synonyms() -> None:
+    c = _crops(["sofa", "dining_table"], ["red", "orange"], ["a big red couch", "a large orange dining table"])
+    captions, per_crop = caption_table(c)
+    sofa = {captions[i] for i in per_crop[0]}
+    table = {captions[i] for i in per_crop[1]}
+    assert "a photo of a sofa" in sofa and "a red wooden sofa" in sofa and "a sofa made of wood" in sofa
+    assert "a big red couch" not in sofa  # the generator's description had a held-out synonym
+    assert "a large orange dining table" in table and "an orange dining table" in table
+    assert not any(voc.contains_held_out(t) for t in captions)
+    assert len(sofa) >= 8
+
+
+def test_vocabulary_is_open_and_consistent() -> None:
+    assert len(voc.OBJECT_NOUNS) >= 300 and len(set(voc.OBJECT_NOUNS)) == len(voc.OBJECT_NOUNS)
+    assert voc.noun("coffee_table") == "coffee table"
+    assert voc.with_article("a orange mug") == "an orange mug"
+    assert voc.contains_held_out("A Couch!") and not voc.contains_held_out("a light blue chair")
+    for t in voc.CAPTION_TEMPLATES:  # templates themselves never contain a held-out word
+        assert not voc.contains_held_out(t)
+
+
+def test_average_precision() -> None:
+    assert _average_precision(np.array([3.0, 2.0, 1.0]), np.array([True, False, True])) == pytest.approx((1 + 2 / 3) / 2)
+    assert _average_precision(np.array([3.0, 2.0]), np.array([False, True])) == pytest.approx(0.5)
+
+
+def test_instance_recall_within_scene_and_pooled() -> None:
+    keys = [1, 2, 1, 2]
+    c = CropSet(
+        np.zeros((4, 8, 8, 3), np.uint8), scene=["a", "a", "a", "a"], split=["mapping", "mapping", "query", "query"],
+        frame=["0"] * 4, object_id=keys, category=["x"] * 4, colour=[""] * 4, material=[""] * 4, description=[""] * 4,
+    )
+    E = np.array([[1, 0], [0, 1], [1, 0], [0, 1]], np.float32)
+    r = _instance_recall(E, c)
+    assert r["instance_recall1_within_scene"] == 1.0 and r["instance_queries"] == 2
+    swapped = _instance_recall(E[[0, 1, 3, 2]], c)
+    assert swapped["instance_recall1_pooled"] == 0.0
+
+
+def test_describer_vocabulary_covers_generator_categories() -> None:
+    from generators.assets import CATEGORIES
+
+    missing = sorted(c for c in CATEGORIES if voc.noun(c) not in voc.OBJECT_NOUNS)
+    assert not missing, missing

@@ -168,3 +168,17 @@ def test_one_diverging_hypothesis_does_not_stop_the_others() -> None:
 def test_huber_annealing_still_converges(delta_start: float) -> None:
     res = refine_pose(perturbed(1, 0.03, 0.15), K, targets_at(T_GT), RefineConfig(huber_delta_start=delta_start))
     assert res.reason is None and geometry.translation_error(T_GT, res.T_wc) < 0.1
+
+
+
+def test_gauss_newton_minimises_the_same_loss() -> None:
+    targets = targets_at(T_GT)
+    T0 = perturbed(1, 0.03, 0.2)
+    res = refine_pose(T0, K, targets, RefineConfig(solver="gauss-newton"))
+    te0, re0 = geometry.pose_errors(T_GT, T0)
+    te, re = geometry.pose_errors(T_GT, res.T_wc)
+    assert res.reason is None and res.loss < 0.2 * res.initial_loss
+    assert res.iterations <= RefineConfig().gn_iterations
+    # measured: 33 cm / 3.3 deg -> 2.5 cm / 0.25 deg in 23 iterations
+    assert te < 0.08 and re < 1.0 and te < te0 and re < re0, (te0, re0, te, re)
+

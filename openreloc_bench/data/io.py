@@ -10,7 +10,7 @@ import json
 import os
 import tempfile
 from pathlib import Path
-from typing import Any
+from typing import Any, Iterator
 
 import cv2
 import numpy as np
@@ -126,6 +126,17 @@ def depth_to_png(depth_m: np.ndarray, scale: float = DEPTH_SCALE_MM) -> np.ndarr
 def _check_size(path: Path, img: np.ndarray, expect_hw: tuple[int, int] | None) -> None:
     if expect_hw is not None and img.shape[:2] != tuple(expect_hw):
         raise DataError(path, f"image is {img.shape[1]}x{img.shape[0]}, expected {expect_hw[1]}x{expect_hw[0]}")
+
+
+def data_lines(path: Path | str) -> Iterator[tuple[int, list[str]]]:
+    """(line number, whitespace-split fields) of every non-blank, non-``#`` line of a text file."""
+    path = Path(path)
+    if not path.is_file():
+        raise DataError(path, "file not found")
+    for lineno, raw in enumerate(path.read_text().splitlines(), 1):
+        line = raw.strip()
+        if line and not line.startswith("#"):
+            yield lineno, line.split()
 
 
 def read_matrix(path: Path | str, shape: tuple[int, int] = (4, 4)) -> np.ndarray:

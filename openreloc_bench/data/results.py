@@ -37,15 +37,8 @@ def write_results(path: Path | str, poses_wc: dict[str, np.ndarray], comments: l
 def read_results(path: Path | str) -> dict[str, np.ndarray]:
     """Read a result file into {name: T_wc}. Malformed lines, duplicates, NaNs and non-unit
     quaternions are errors naming the file and line (a submission must be explicit)."""
-    path = Path(path)
-    if not path.is_file():
-        raise DataError(path, "file not found")
     poses: dict[str, np.ndarray] = {}
-    for lineno, raw in enumerate(path.read_text().splitlines(), 1):
-        line = raw.strip()
-        if not line or line.startswith("#"):
-            continue
-        parts = line.split()
+    for lineno, parts in io.data_lines(path):
         where = f"line {lineno}"
         if len(parts) != 8:
             raise DataError(path, f"{where}: expected 'name qw qx qy qz tx ty tz', got {len(parts)} fields")
@@ -82,15 +75,8 @@ def write_tum(path: Path | str, poses_wc: dict[str, np.ndarray], timestamps: dic
 
 def read_tum_trajectory(path: Path | str) -> tuple[np.ndarray, np.ndarray]:
     """(timestamps (N,), T_wc (N,4,4)) from a TUM trajectory / groundtruth file."""
-    path = Path(path)
-    if not path.is_file():
-        raise DataError(path, "file not found")
     stamps, poses = [], []
-    for lineno, raw in enumerate(path.read_text().splitlines(), 1):
-        line = raw.strip()
-        if not line or line.startswith("#"):
-            continue
-        parts = line.split()
+    for lineno, parts in io.data_lines(path):
         try:
             vals = [float(v) for v in parts]
         except ValueError:

@@ -22,7 +22,6 @@ from __future__ import annotations
 from pathlib import Path
 
 import cv2
-import numpy as np
 
 from openreloc_bench import geometry
 from openreloc_bench.data import io

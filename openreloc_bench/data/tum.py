@@ -23,14 +23,8 @@ TUM_DEFAULT_K = geometry.intrinsics(525.0, 525.0, 319.5, 239.5)
 
 
 def _read_list(path: Path) -> tuple[np.ndarray, list[str]]:
-    if not path.is_file():
-        raise DataError(path, "file not found")
     stamps, files = [], []
-    for lineno, raw in enumerate(path.read_text().splitlines(), 1):
-        line = raw.strip()
-        if not line or line.startswith("#"):
-            continue
-        parts = line.split()
+    for lineno, parts in io.data_lines(path):
         try:
             stamps.append(float(parts[0]))
         except (ValueError, IndexError):

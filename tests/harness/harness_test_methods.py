@@ -6,10 +6,9 @@ methods as the test process.
 
 from __future__ import annotations
 
-import json
 import time
 import zlib
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 

@@ -17,5 +17,5 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     for name, factory in sorted(available_methods().items()):
-        print(f"{name:20s} {factory.__doc__ or ''}")
+        print(f"{name:30s} {factory.__doc__ or ''}")
     return 0

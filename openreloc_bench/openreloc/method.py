@@ -353,3 +353,16 @@ def _stage_timer(timings: dict[str, float]) -> Any:
             timings[name] = round(timings.get(name, 0.0) + time.perf_counter() - t, 4)  # a stage may run twice
 
     return stage
+
+
+class OpenReLocOracleAssociation(OpenReLoc):
+    """DIAGNOSTIC upper bound, registered as ``openreloc-oracle-association``: OpenReLoc with the
+    ground-truth landmark association (``association.oracle``; oracle-mask track only). It isolates the
+    geometric stages (retrieval, refinement) from the encoder and describer, so a leaderboard can show
+    how much of OpenReLoc's error is association. Not a relocalization method in its own right."""
+
+    name = "openreloc-oracle-association"
+
+    def __init__(self, **overrides: Any):
+        association = {**(overrides.pop("association", None) or {}), "oracle": True}
+        super().__init__(association=association, **overrides)

@@ -164,3 +164,12 @@ def test_text_cache_encodes_each_phrase_once() -> None:
     b = cache.encode_texts(["a blue sofa"])
     assert inner.calls == [["a red sofa", "a blue sofa"]]
     assert np.allclose(a[1], b[0]) and a.shape == (3, inner.dim) and cache.encode_texts([]).shape == (0, inner.dim)
+
+
+def test_oracle_association_diagnostic_is_registered_and_keeps_other_overrides() -> None:
+    from openreloc_bench.methods import create_method
+
+    m = create_method("openreloc-oracle-association", association={"top_k": 2}, no_refine=True)
+    assert m.name == "openreloc-oracle-association"
+    assert m.config.association.oracle and m.config.association.top_k == 2 and m.config.no_refine
+    assert not create_method("openreloc").config.association.oracle

@@ -8,8 +8,6 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from openreloc_bench.harness.leaderboard import write_leaderboard
-
 NAME = "leaderboard"
 HELP = "render the leaderboard (markdown, CSV, HTML, plots) from results"
 ORDER = 50
@@ -21,6 +19,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from openreloc_bench.harness.leaderboard import write_leaderboard  # matplotlib: only when used
+
     files = write_leaderboard(args.results, args.out)
     print((args.out / "leaderboard.md").read_text().split("\n## ")[0].rstrip())
     print(f"wrote {len(files)} files to {args.out}")

@@ -6,13 +6,9 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from openreloc_bench.openreloc.map import ObjectMap  # noqa: E402
+from openreloc_bench.openreloc.map import ObjectMap
 
 NAME = "show-map"
 HELP = "top-down PNG of an OpenReLoc map (landmarks, scene graph, reference frames)"
@@ -25,6 +21,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def draw_map(m: ObjectMap, out: Path) -> None:
+    import matplotlib  # here, not at module level: every CLI call imports all command modules
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
     fig, ax = plt.subplots(figsize=(9, 9), dpi=110)
     cats = sorted({lm.category or "?" for lm in m.landmarks.values() if lm.valid})
     cmap = plt.get_cmap("tab20")

@@ -40,9 +40,10 @@ from openreloc_bench.openreloc.explain import PlacedObject, explain_pose
 from openreloc_bench.openreloc.map import ObjectMap
 from openreloc_bench.openreloc.refine import RefineConfig, RefineTarget, refine_poses
 from openreloc_bench.openreloc.retrieval import CoarseConfig, pnp_prior, retrieve_reference
+from openreloc_bench.openreloc.verify import ObjectEvidence, VerifyConfig, extreme_points, verify_matches
 from openreloc_bench.vision.base import ImageTextEncoder, ObjectMask, create_describer, create_encoder, create_segmenter
 
-STAGES = ("segment", "encode", "describe", "associate", "retrieve", "refine")
+STAGES = ("segment", "encode", "describe", "associate", "verify", "retrieve", "refine")
 
 
 @dataclass
@@ -71,6 +72,9 @@ class OpenReLocConfig:
     """Fewer associated landmarks than this: the query fails."""
     association: AssociationConfig = field(default_factory=AssociationConfig)
     """Landmark association settings."""
+    verification: VerifyConfig = field(default_factory=VerifyConfig)
+    """Beyond the paper: object-level RANSAC that keeps only the matches one camera pose explains
+    (``enabled: false`` = the paper's association as it is)."""
     coarse: CoarseConfig = field(default_factory=CoarseConfig)
     """Coarse-stage hypotheses (reference frames, PnP); ``top_frames=1, pnp=False`` is the paper's single prior."""
     refinement: RefineConfig = field(default_factory=RefineConfig)
@@ -126,6 +130,8 @@ class OpenReLoc:
         self.segmenter = create_segmenter(cfg.segmenter, **cfg.segmenter_options)
         self.ids = sorted(m.landmarks)
         self.descriptors = m.descriptor_matrix(self.ids)
+        self.centers = np.array([m.landmarks[i].center for i in self.ids], dtype=np.float64).reshape(-1, 3)
+        self.extremes = np.array([extreme_points(m.landmarks[i].points) for i in self.ids]).reshape(len(self.ids), -1, 3)
         self.crop_padding = float(m.config.get("descriptors", {}).get("padding", 0.1))
 
     # ------------------------------------------------------------------------------------ query
@@ -168,6 +174,7 @@ class OpenReLoc:
             return Failure(f"{len(masks)} object(s) detected, need at least {cfg.min_objects}", diag)
 
         invalid = frozenset() if cfg.no_filtering else frozenset(set(self.ids) - set(m.valid_ids()))
+        verified: np.ndarray | None = None  # the verification stage's pose, when it finds one
         if cfg.association.oracle:
             if query.instance is None:
                 return Failure("association.oracle (a diagnostic) needs the oracle-mask track", diag)
@@ -187,12 +194,17 @@ class OpenReLoc:
                 # association sees every landmark; filtered ones (walls, floor) only veto the query
                 # objects that look most like them, instead of forcing those onto a valid look-alike
                 matches = associate(objects, self.ids, self.descriptors, graph, cfg.association, invalid)
+            if cfg.verification.enabled:
+                with stage("verify"):
+                    matches, verified = self._verify(matches, objects, invalid, K, diag)
         diag["matches"] = [_match_diag(mt, objects, m) for mt in matches]
         if len(matches) < cfg.min_matches:
             return Failure(f"{len(matches)} landmark(s) associated, need at least {cfg.min_matches}", diag)
 
         with stage("retrieve"):
             hypotheses = self._hypotheses(matches, objects, K, diag)
+            if hypotheses and verified is not None and not cfg.no_coarse:
+                hypotheses.append(("verified", verified))
         if not hypotheses:
             return Failure("no reference frame shares a matched landmark", diag)
 
@@ -251,6 +263,37 @@ class OpenReLoc:
                 for o, p, e in zip(objects, phrases, self.encoder.encode_texts(phrases)):
                     o.phrase, o.text = p, e
         return objects
+
+    def _verify(self, matches: list[Match], objects: list[QueryObject], invalid: frozenset[int], K: np.ndarray,
+                diag: dict[str, Any]) -> tuple[list[Match], np.ndarray | None]:
+        """Object-level RANSAC over each object's candidates (its match first, then its visual ranking):
+        the matches one pose explains, and that pose; the association unchanged when none does."""
+        cfg = self.config
+        row_of = {lid: r for r, lid in enumerate(self.ids)}
+        matched = {mt.query: mt for mt in matches}
+        sims = np.stack([o.visual for o in objects]) @ self.descriptors.T
+        evidence = []
+        for q, o in enumerate(objects):
+            first = [row_of[c] for c in matched[q].candidates] if q in matched else []
+            ranked = dict.fromkeys(first + np.argsort(-sims[q], kind="stable").tolist())
+            rows = [r for r in ranked if self.ids[r] not in invalid][: cfg.verification.candidates]
+            evidence.append(ObjectEvidence(o.mask, rows))
+        result = verify_matches(evidence, self.centers, self.extremes, K, cfg.verification, seed=cfg.seed)
+        if result is None:
+            diag["verification"] = {"inliers": 0, "kept": "association"}
+            return matches, None
+        out = []
+        for q, row in sorted(result.assignment.items()):
+            lid, o = self.ids[row], objects[q]
+            same = q in matched and matched[q].landmark == lid
+            out.append(matched[q] if same else Match(
+                query=q, landmark=lid, visual_sim=float(sims[q, row]),
+                text_sim=None if o.text is None else float(self.descriptors[row] @ o.text), how="verified",
+                candidates=[self.ids[r] for r in evidence[q].candidates]))
+        changed = sum(mt.how == "verified" for mt in out)
+        diag["verification"] = {"inliers": result.inliers, "hypotheses": result.hypotheses, "changed": changed,
+                                "dropped": len(matches) - (len(out) - changed)}
+        return out, result.T_wc
 
     def _hypotheses(self, matches: list[Match], objects: list[QueryObject], K: np.ndarray,
                     diag: dict[str, Any]) -> list[tuple[str, np.ndarray]]:

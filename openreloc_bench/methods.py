@@ -113,6 +113,14 @@ def method_config(method: Relocalizer) -> dict[str, Any]:
     return {"name": method.name, "config": asdict(cfg) if is_dataclass(cfg) else {}}
 
 
+def map_config(method: Relocalizer) -> dict[str, Any]:
+    """The part of the config that determines the map, from the method's optional ``map_config()``
+    (default: the full config). The harness caches maps by its hash, so runs that differ only in
+    query-time settings (ablations of the query stages, refinement, verification) share one map."""
+    own = getattr(method, "map_config", None)
+    return {"name": method.name, "config": own()} if callable(own) else method_config(method)
+
+
 # --------------------------------------------------------------------------------------------
 # nearest-frame: the simplest honest method (image retrieval over the mapping frames)
 # --------------------------------------------------------------------------------------------

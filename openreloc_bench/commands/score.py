@@ -42,7 +42,7 @@ def run(args: argparse.Namespace) -> int:
     queries = score.score_submission(args.submission, args.data, scenes, splits,
                                      args.method or args.submission.resolve().name, args.track)
     out = args.out or args.submission / "scores"
-    maps = pd.DataFrame(columns=["config_hash", "scene", "map_mb", "mapping_time_s"])
+    maps = pd.DataFrame(columns=["map_hash", "scene", "map_mb", "mapping_time_s"])
     _, suite = tables.write_tables(out / "tables", queries, maps)
     missing = queries[queries["reason"] == "missing"]
     if len(missing):

@@ -40,7 +40,7 @@ from openreloc_bench.errors import ConfigError, DataError
 from openreloc_bench.harness import cache
 from openreloc_bench.harness.executors import make_executor, mp_context
 from openreloc_bench.harness.score import Outcome, score_split
-from openreloc_bench.methods import Failure, PoseEstimate, QueryFrame, Relocalizer, create_method, method_config
+from openreloc_bench.methods import Failure, PoseEstimate, QueryFrame, Relocalizer, create_method, map_config, method_config
 
 log = logging.getLogger(__name__)
 
@@ -343,15 +343,17 @@ def plan(cfg: EvalConfig) -> tuple[list[MapJob], list[QueryJob]]:
     map_jobs, query_jobs = [], []
     for run in cfg.runs:
         try:
-            mcfg = method_config(create_method(run.method, **run.overrides))
+            method = create_method(run.method, **run.overrides)
+            mcfg = method_config(method)
         except TypeError as e:  # plugins that take **kwargs loosely fail this way on a bad key
             raise ConfigError(f"method '{run.label}': invalid config ({e})") from None
         chash = cache.config_hash(mcfg)
+        map_hash = cache.config_hash(map_config(method))
         for name, scene in scenes.items():
             spec = scene_spec_hash(scene)
-            map_dir = cfg.out / "maps" / run.method / chash / name
+            map_dir = cfg.out / "maps" / run.method / map_hash / name
             prov = {"method": run.label, "registry_name": run.method, "method_config": mcfg,
-                    "config_hash": chash, "scene": name, "spec_hash": spec, "git_commit": commit}
+                    "config_hash": chash, "map_hash": map_hash, "scene": name, "spec_hash": spec, "git_commit": commit}
             map_jobs.append(MapJob(run, scene.root, map_dir, spec, prov, cfg.plugins))
             for split in cfg.splits:
                 out_dir = cfg.out / "runs" / run.label / cfg.track / name
@@ -411,6 +413,7 @@ def load_run_queries(out: Path) -> pd.DataFrame:
         rec = io.read_json(marker)
         df = pd.read_csv(marker.with_name(f"{rec['split']}.queries.csv"), dtype={"reason": str})
         df["reason"] = df["reason"].fillna("")
+        df.insert(0, "map_hash", rec.get("map_hash", rec["config_hash"]))  # older runs keyed maps by the full config
         for key in ("git_commit", "spec_hash", "config_hash", "split", "scene", "track", "method"):
             df.insert(0, key, rec[key])
         frames.append(df)
@@ -418,8 +421,8 @@ def load_run_queries(out: Path) -> pd.DataFrame:
 
 
 def load_map_records(out: Path) -> pd.DataFrame:
-    """Mapping time and map size of every cached map, one row per (config hash, scene)."""
-    rows = [{"config_hash": p.parent.name, "scene": p.name[: -len(".done.json")],
+    """Mapping time and map size of every cached map, one row per (map config hash, scene)."""
+    rows = [{"map_hash": p.parent.name, "scene": p.name[: -len(".done.json")],
              "map_mb": r["map_bytes"] / 1e6, "mapping_time_s": r["mapping_time_s"]}
             for p in sorted((out / "maps").glob("*/*/*.done.json")) for r in [io.read_json(p)]]
-    return pd.DataFrame(rows, columns=["config_hash", "scene", "map_mb", "mapping_time_s"])
+    return pd.DataFrame(rows, columns=["map_hash", "scene", "map_mb", "mapping_time_s"])

@@ -125,7 +125,7 @@ def score_submission(submission: Path, data: Path, scenes: list[str], splits: li
             outcomes = submission_outcomes(submission, name, seq) or {}
             df = score_split(seq, outcomes)
             meta = {"method": method, "track": track, "scene": name, "split": split, "config_hash": "submission",
-                    "spec_hash": scene_spec_hash(scene), "git_commit": git_commit()}
+                    "map_hash": "submission", "spec_hash": scene_spec_hash(scene), "git_commit": git_commit()}
             for i, (k, v) in enumerate(meta.items()):
                 df.insert(i, k, v)
             frames.append(df)

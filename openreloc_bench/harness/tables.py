@@ -36,7 +36,7 @@ def metric_table(queries: pd.DataFrame, keys: list[str], maps: pd.DataFrame) -> 
         row: dict[str, Any] = dict(zip(keys, key))
         row.update(summarize(g["t_err_m"].to_numpy(), g["r_err_deg"].to_numpy()))
         row["n_queries"], row["n_failed"] = int(row["n_queries"]), int(row["n_failed"])
-        scene_maps = maps.merge(g[["config_hash", "scene"]].drop_duplicates(), on=["config_hash", "scene"])
+        scene_maps = maps.merge(g[["map_hash", "scene"]].drop_duplicates(), on=["map_hash", "scene"])
         row["n_scenes"] = int(g["scene"].nunique())
         row["map_mb"] = float(scene_maps["map_mb"].mean()) if len(scene_maps) else math.nan
         row["mapping_time_s"] = float(scene_maps["mapping_time_s"].mean()) if len(scene_maps) else math.nan

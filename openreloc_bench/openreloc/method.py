@@ -110,6 +110,16 @@ class OpenReLoc:
 
     # ------------------------------------------------------------------------------------ map
 
+    def map_config(self) -> dict[str, Any]:
+        """What the map depends on (the harness shares maps across everything else: ablations of the
+        query stages, refinement, verification)."""
+        cfg = self.config
+        out: dict[str, Any] = {"encoder": cfg.encoder, "encoder_options": cfg.encoder_options,
+                               "mapping": dataclasses.asdict(cfg.mapping)}
+        if cfg.mapping.instances_from == "segmenter":
+            out.update(segmenter=cfg.segmenter, segmenter_options=cfg.segmenter_options)
+        return out
+
     def build_map(self, mapping: SceneSequence, map_dir: Path) -> None:
         cfg = self.config
         encoder = create_encoder(cfg.encoder, **cfg.encoder_options)
@@ -259,7 +269,7 @@ class OpenReLoc:
             return Failure(f"{len(objects)} of {len(masks)} object(s) unique enough to match, need {cfg.min_objects}", diag)
         with stage("describe"):
             if self.describer is not None:
-                phrases = [self.describer.describe(rgb, o.mask) for o in objects]
+                phrases = self.describer.describe_many(rgb, [o.mask for o in objects])
                 for o, p, e in zip(objects, phrases, self.encoder.encode_texts(phrases)):
                     o.phrase, o.text = p, e
         return objects

@@ -40,6 +40,8 @@ class OracleConfig:
     """Sleep per query (to make runs slow enough to kill)."""
     expect_track: str = ""
     """If set, raise when a query comes from another track."""
+    map_tag: str = ""
+    """Written into the map: the one map-time setting (the others act at query time)."""
 
 
 class NoisyOracle:
@@ -51,9 +53,12 @@ class NoisyOracle:
         self.config = OracleConfig(**overrides)
         self._root: Path | None = None
 
+    def map_config(self) -> dict[str, Any]:
+        return {"map_tag": self.config.map_tag}
+
     def build_map(self, mapping: SceneSequence, map_dir: Path) -> None:
         root = mapping.records[0].color_path.parents[2]
-        io.write_json(Path(map_dir) / "oracle.json", {"scene_root": str(root), "config": asdict(self.config)})
+        io.write_json(Path(map_dir) / "oracle.json", {"scene_root": str(root), "map_tag": self.config.map_tag})
 
     def load_map(self, map_dir: Path) -> None:
         self._root = Path(io.read_json(Path(map_dir) / "oracle.json")["scene_root"])

@@ -35,7 +35,7 @@ def test_eval_writes_poses_tum_tables_and_provenance(data_dir: Path, tmp_path: P
     marker = io.read_json(d / "query.done.json")
     assert marker["method_config"] == {"name": "test-oracle", "config": {
         "noise_m": 0.1, "noise_deg": 2.0, "fail_on": "", "raise_on": "", "hang_on": "", "delay_s": 0.0,
-        "expect_track": ""}}
+        "expect_track": "", "map_tag": ""}}
     assert marker["track"] == "oracle-mask" and marker["spec_hash"] == "hash-sA-1" and marker["git_commit"]
     q = runner.load_run_queries(tmp_path)
     assert len(q) == 2 * 2 * 2 * 3
@@ -59,9 +59,12 @@ def test_maps_are_cached_by_config_and_spec(data_dir: Path, tmp_path: Path) -> N
     assert runner.evaluate(cfg(data_dir, tmp_path, [run])).maps_built == 2
     again = runner.evaluate(cfg(data_dir, tmp_path, [run]))
     assert (again.maps_built, again.maps_cached) == (0, 2)
-    other = runner.evaluate(cfg(data_dir, tmp_path, [MethodRun("o2", "test-oracle", {"noise_m": 0.2})]))
-    assert other.maps_built == 2
-    assert len(list((tmp_path / "maps" / "test-oracle").iterdir())) == 2  # two config hashes
+    # a query-time setting shares the maps; a map-time one (the method's map_config) does not
+    query_time = runner.evaluate(cfg(data_dir, tmp_path, [MethodRun("o2", "test-oracle", {"noise_m": 0.2})]))
+    assert (query_time.maps_built, query_time.maps_cached) == (0, 2)
+    map_time = runner.evaluate(cfg(data_dir, tmp_path, [MethodRun("o3", "test-oracle", {"map_tag": "b"})]))
+    assert map_time.maps_built == 2
+    assert len(list((tmp_path / "maps" / "test-oracle").iterdir())) == 2  # one folder per map config
 
 
 def test_raise_failure_and_hang_fail_one_query_each_and_the_run_goes_on(data_dir: Path, tmp_path: Path) -> None:

@@ -11,12 +11,12 @@ import pytest
 from openreloc_bench.harness.ablations import ABLATION_ROWS, FULL_ROW, ablation_label
 from openreloc_bench.harness.tables import build_tables, paper_tables
 
-MAPS = pd.DataFrame({"config_hash": ["h"], "scene": ["a"], "map_mb": [2.0], "mapping_time_s": [3.0]})
+MAPS = pd.DataFrame({"map_hash": ["h"], "scene": ["a"], "map_mb": [2.0], "mapping_time_s": [3.0]})
 
 
 def queries(method: str, scene: str, split: str, t: list[float], r: list[float]) -> pd.DataFrame:
     n = len(t)
-    return pd.DataFrame({"method": method, "track": "oracle-mask", "scene": scene, "split": split, "config_hash": "h",
+    return pd.DataFrame({"method": method, "track": "oracle-mask", "scene": scene, "split": split, "config_hash": "h", "map_hash": "h",
                          "spec_hash": "s", "git_commit": "c", "query": [f"{split}/{i:06d}" for i in range(n)],
                          "t_err_m": t, "r_err_deg": r, "runtime_s": np.arange(1, n + 1, dtype=float)})
 

@@ -173,3 +173,12 @@ def test_oracle_association_diagnostic_is_registered_and_keeps_other_overrides()
     assert m.name == "openreloc-oracle-association"
     assert m.config.association.oracle and m.config.association.top_k == 2 and m.config.no_refine
     assert not create_method("openreloc").config.association.oracle
+
+
+def test_map_config_ignores_query_time_settings() -> None:
+    base = create_method("openreloc").map_config()
+    for query_time in ({"no_refine": True}, {"verification": {"enabled": False}}, {"coarse": {"top_frames": 1}},
+                       {"segmenter": "noisy-gt"}):
+        assert create_method("openreloc", **query_time).map_config() == base
+    assert create_method("openreloc", mapping={"fusion": {"voxel_size": 0.05}}).map_config() != base
+    assert create_method("openreloc", encoder_options={"weights": "elsewhere"}).map_config() != base

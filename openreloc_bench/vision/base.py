@@ -70,6 +70,10 @@ class Describer(abc.ABC):
     def describe(self, rgb: np.ndarray, mask: np.ndarray) -> str:
         """RGB uint8 (H, W, 3) and a bool mask of one object -> e.g. 'a red armchair'."""
 
+    def describe_many(self, rgb: np.ndarray, masks: list[np.ndarray]) -> list[str]:
+        """One phrase per mask of the same image; backends override it to batch their model calls."""
+        return [self.describe(rgb, m) for m in masks]
+
 
 _ENCODERS: dict[str, Callable[..., ImageTextEncoder]] = {}
 _DESCRIBERS: dict[str, Callable[..., Describer]] = {}

@@ -35,7 +35,12 @@ log = logging.getLogger(__name__)
 
 @register_describer("offline")
 class OfflineDescriber(Describer):
-    """'a {colour} [{material}] {noun}' chosen by retrieval in the encoder's joint space."""
+    """'a {colour} [{material}] {noun}' chosen by retrieval in the encoder's joint space.
+
+    Colour and material are chosen against noun-agnostic phrases ('a red object', 'a red wooden
+    object', the usual zero-shot attribute prompts): their embeddings are computed once, whereas
+    noun-specific ones ('a red sofa') would cost a text-encoder pass for every new noun at query time.
+    """
 
     name = "offline"
 
@@ -54,31 +59,38 @@ class OfflineDescriber(Describer):
         if not self.nouns:
             raise ConfigError("offline describer: the noun vocabulary is empty")
         self.context_weight, self.context_scale, self.material_margin = context_weight, context_scale, material_margin
-        self._noun_emb: np.ndarray | None = None
+        self._tables: dict[str, np.ndarray] = {}
 
-    def _nouns(self) -> np.ndarray:
-        if self._noun_emb is None:
-            self._noun_emb = self.encoder.encode_texts([voc.with_article(voc.ZERO_SHOT_TEMPLATE.format(noun=n)) for n in self.nouns])
-        return self._noun_emb
+    def _table(self, key: str, phrases: list[str]) -> np.ndarray:
+        if key not in self._tables:
+            self._tables[key] = self.encoder.encode_texts(phrases)
+        return self._tables[key]
 
     def describe(self, rgb: np.ndarray, mask: np.ndarray) -> str:
+        return self.describe_many(rgb, [mask])[0]
+
+    def describe_many(self, rgb: np.ndarray, masks: list[np.ndarray]) -> list[str]:
         rgb = as_rgb_uint8(rgb)
-        m = check_mask(mask, rgb.shape[:2])
-        box = mask_box(m)
-        crops = [square_crop(rgb, box, 1.2), square_crop(rgb, box, self.context_scale)]
-        obj, ctx = self.encoder.encode_images(crops)
+        boxes = [mask_box(check_mask(m, rgb.shape[:2])) for m in masks]
+        if not boxes:
+            return []
+        crops = [c for b in boxes for c in (square_crop(rgb, b, 1.2), square_crop(rgb, b, self.context_scale))]
+        emb = self.encoder.encode_images(crops)  # one batch: object and context crops interleaved
+        obj, ctx = emb[0::2], emb[1::2]
         q = obj + self.context_weight * ctx
-        q = q / np.linalg.norm(q)
-        noun = self.nouns[int(np.argmax(self._nouns() @ q))]
-        colour_phrases = [voc.with_article(f"a {c} {noun}") for c in voc.COLOURS]
-        cs = self.encoder.encode_texts(colour_phrases) @ obj
-        colour = voc.COLOURS[int(np.argmax(cs))]
-        mat_phrases = [voc.with_article(f"a {colour} {mt} {noun}") for mt in voc.MATERIALS]
-        ms = self.encoder.encode_texts(mat_phrases) @ obj
-        best = int(np.argmax(ms))
-        if ms[best] > cs.max() + self.material_margin:
-            return mat_phrases[best]
-        return colour_phrases[int(np.argmax(cs))]
+        q /= np.linalg.norm(q, axis=1, keepdims=True).clip(1e-12)
+        nouns = self._table("nouns", [voc.with_article(voc.ZERO_SHOT_TEMPLATE.format(noun=n)) for n in self.nouns])
+        colours = self._table("colours", [voc.with_article(f"a {c} object") for c in voc.COLOURS])
+        out = []
+        for o, noun_k in zip(obj, np.argmax(q @ nouns.T, axis=1)):
+            noun = self.nouns[int(noun_k)]
+            cs = colours @ o
+            colour = voc.COLOURS[int(np.argmax(cs))]
+            ms = self._table(f"materials/{colour}", [voc.with_article(f"a {colour} {mt} object") for mt in voc.MATERIALS]) @ o
+            best = int(np.argmax(ms))
+            words = f"{colour} {voc.MATERIALS[best]}" if ms[best] > cs.max() + self.material_margin else colour
+            out.append(voc.with_article(f"a {words} {noun}"))
+        return out
 
 
 PROMPT = (

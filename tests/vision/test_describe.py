@@ -69,6 +69,19 @@ def test_offline_describer_sees_object_and_context(clip_encoder) -> None:
     assert d0.describe(other, mask) == d0.describe(img, mask)
 
 
+def test_offline_describer_batches_all_objects_of_an_image(clip_encoder) -> None:
+    img, mask = _image()
+    other = np.zeros_like(mask)
+    other[5:15, 40:60] = True
+    img[5:15, 40:60] = (20, 20, 200)
+    spy = _Spy(clip_encoder)
+    d = create_describer("offline", encoder=spy)
+    phrases = d.describe_many(img, [mask, other])
+    assert len(spy.crops) == 1 and len(spy.crops[0]) == 4  # one encoder call: object + context crop each
+    assert phrases == [d.describe(img, mask), d.describe(img, other)]
+    assert d.describe_many(img, []) == []
+
+
 def test_offline_describer_bad_masks(clip_encoder) -> None:
     d = create_describer("offline", encoder=clip_encoder)
     img, mask = _image()

@@ -33,6 +33,7 @@ ABLATION_ROWS: tuple[Row, ...] = (
     Row("no_language", "#4 w/o Language Modality", {"no_language": True}),
     Row("visibility_retrieval", "#5 w/o DIoU-based Retrieval", {"retrieval": "visibility"}),
     Row("no_filtering", "#6 w/o Invalid Object Filtering", {"no_filtering": True}),
+    Row("no_verification", "#7 w/o Geometric Verification (beyond the paper)", {"verification": {"enabled": False}}),
 )
 FULL_ROW = Row("full", "Ours Full")
 

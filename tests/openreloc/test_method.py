@@ -78,11 +78,20 @@ def test_no_refine_returns_the_reference_frame_pose(map_dir: Path) -> None:
 
 
 @pytest.mark.parametrize("override", [{"no_coarse": True}, {"no_scene_graph": True},
-                                      {"retrieval": "visibility"}, {"no_filtering": True}])
+                                      {"retrieval": "visibility"}, {"no_filtering": True},
+                                      {"verification": {"enabled": False}}])
 def test_ablation_switches_run(map_dir: Path, override: dict) -> None:
     q, _ = held_out_query()
     res = localizer(map_dir, **override, refinement={"max_iterations": 20}).localize(q)
     assert isinstance(res, (PoseEstimate, Failure))
+
+
+def test_verification_stage_reports_or_stays_out(map_dir: Path) -> None:
+    q, _ = held_out_query()
+    on = localizer(map_dir, refinement={"max_iterations": 5}).localize(q)
+    assert "verify" in on.diagnostics["timings"] and "inliers" in on.diagnostics["verification"]
+    off = localizer(map_dir, refinement={"max_iterations": 5}, verification={"enabled": False}).localize(q)
+    assert "verify" not in off.diagnostics["timings"] and "verification" not in off.diagnostics
 
 
 def test_language_modality_uses_the_describer(map_dir: Path) -> None:

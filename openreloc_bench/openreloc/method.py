@@ -24,6 +24,7 @@ import numpy as np
 from openreloc_bench import config as cfglib
 from openreloc_bench import geometry
 from openreloc_bench.data.types import SceneSequence
+from openreloc_bench.errors import DataError
 from openreloc_bench.methods import Failure, PoseEstimate, QueryFrame
 from openreloc_bench.openreloc.association import (
     AssociationConfig,
@@ -41,7 +42,14 @@ from openreloc_bench.openreloc.map import ObjectMap
 from openreloc_bench.openreloc.refine import RefineConfig, RefineTarget, refine_poses
 from openreloc_bench.openreloc.retrieval import CoarseConfig, pnp_prior, retrieve_reference
 from openreloc_bench.openreloc.verify import ObjectEvidence, VerifyConfig, extreme_points, verify_matches
-from openreloc_bench.vision.base import ImageTextEncoder, ObjectMask, create_describer, create_encoder, create_segmenter
+from openreloc_bench.vision.base import (
+    ImageTextEncoder,
+    ObjectMask,
+    create_describer,
+    create_encoder,
+    create_segmenter,
+    encoder_fingerprint,
+)
 
 STAGES = ("segment", "encode", "describe", "associate", "verify", "retrieve", "refine")
 
@@ -115,6 +123,7 @@ class OpenReLoc:
         query stages, refinement, verification)."""
         cfg = self.config
         out: dict[str, Any] = {"encoder": cfg.encoder, "encoder_options": cfg.encoder_options,
+                               "encoder_weights": encoder_fingerprint(cfg.encoder, cfg.encoder_options),
                                "mapping": dataclasses.asdict(cfg.mapping)}
         if cfg.mapping.instances_from == "segmenter":
             out.update(segmenter=cfg.segmenter, segmenter_options=cfg.segmenter_options)
@@ -130,7 +139,12 @@ class OpenReLoc:
         cfg = self.config
         self.map = m = ObjectMap.load(map_dir)
         enc = dict(m.encoder)
-        self.encoder = create_encoder(enc.pop("name"), **enc)
+        built_with = enc.pop("fingerprint", "")
+        name = enc.pop("name")
+        if built_with and built_with != (now := encoder_fingerprint(name, enc)):
+            raise DataError(map_dir, f"built with {name} encoder weights {built_with}, but the installed weights are "
+                                     f"{now}: rebuild the map (descriptors from other weights cannot be compared)")
+        self.encoder = create_encoder(name, **enc)
         self.describer = None
         if not cfg.no_language:
             # every describer embeds its phrase choice (or its fallback) in the map's encoder space

@@ -37,6 +37,12 @@ class ImageTextEncoder(abc.ABC):
         """What is needed to rebuild this encoder (recorded in maps and results)."""
         return {"name": self.name}
 
+    @classmethod
+    def weights_fingerprint(cls, **options: Any) -> str:
+        """Identifies the weights the encoder with these constructor options would load, without loading
+        them. Maps record it, so a map is never queried (or reused from a cache) with other weights."""
+        return ""
+
 
 @dataclass
 class ObjectMask:
@@ -106,6 +112,13 @@ def _create(kind: str, table: dict[str, Callable[..., Any]], name: str, kwargs: 
 
 def create_encoder(name: str, **kwargs: Any) -> ImageTextEncoder:
     return _create("encoder", _ENCODERS, name, kwargs)
+
+
+def encoder_fingerprint(name: str, options: dict[str, Any]) -> str:
+    """The registered encoder's ``weights_fingerprint`` for these options ("" when it defines none)."""
+    factory = _ENCODERS.get(name)
+    fingerprint = getattr(factory, "weights_fingerprint", None)
+    return fingerprint(**options) if callable(fingerprint) else ""
 
 
 def create_describer(name: str, **kwargs: Any) -> Describer:

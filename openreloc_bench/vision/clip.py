@@ -115,3 +115,8 @@ class ClipEncoder(ImageTextEncoder):
 
     def config(self) -> dict[str, Any]:
         return {"name": self.name, "model": self.model_id}
+
+    @classmethod
+    def weights_fingerprint(cls, model: str = "", **_: Any) -> str:
+        """The checkpoint's directory or hub id (hashing gigabytes of weights per run would cost more than it saves)."""
+        return str(model)

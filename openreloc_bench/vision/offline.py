@@ -9,6 +9,7 @@ The committed weights live in ``openreloc_bench/vision/weights/``.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 from dataclasses import dataclass, field
@@ -166,3 +167,10 @@ class OfflineEncoder(ImageTextEncoder):
 
     def config(self) -> dict[str, Any]:
         return {"name": self.name, "weights": str(self.weights_dir), "text_model": self.text.model_id}
+
+    @classmethod
+    def weights_fingerprint(cls, weights: str | Path | None = None, text_model: str | None = None, **_: Any) -> str:
+        """sha256 (12 hex digits) of the image tower file, plus the text model's id when one is given."""
+        pt = (Path(weights) if weights else WEIGHTS_DIR) / "image_tower.pt"
+        digest = hashlib.sha256(pt.read_bytes()).hexdigest()[:12] if pt.is_file() else "missing"
+        return digest if not text_model else f"{digest}+{text_model}"

@@ -11,7 +11,7 @@ from tests.openreloc.boxworld import ROOM, MeanColorEncoder, camera_poses, rende
 
 from openreloc_bench import geometry
 from openreloc_bench.data.scene import Scene
-from openreloc_bench.errors import ConfigError
+from openreloc_bench.errors import ConfigError, DataError
 from openreloc_bench.methods import Failure, PoseEstimate, QueryFrame, create_method
 from openreloc_bench.vision.base import register_encoder
 
@@ -191,3 +191,28 @@ def test_map_config_ignores_query_time_settings() -> None:
         assert create_method("openreloc", **query_time).map_config() == base
     assert create_method("openreloc", mapping={"fusion": {"voxel_size": 0.05}}).map_config() != base
     assert create_method("openreloc", encoder_options={"weights": "elsewhere"}).map_config() != base
+
+
+class VersionedColorEncoder(MeanColorEncoder):
+    """The mean-colour encoder with a settable weights fingerprint (as if retrained)."""
+
+    name = "mean-color-versioned"
+    version = "a"
+
+    @classmethod
+    def weights_fingerprint(cls, **options) -> str:
+        return cls.version
+
+
+register_encoder("mean-color-versioned")(VersionedColorEncoder)
+
+
+def test_map_from_other_encoder_weights_is_refused_and_not_reused(tmp_path: Path, monkeypatch) -> None:
+    seq = Scene(write_boxworld(tmp_path / "scene", n_frames=16, hw=HW)).sequence("mapping")
+    method = create_method("openreloc", encoder="mean-color-versioned", mapping=MAPPING)
+    method.build_map(seq, tmp_path / "map")
+    before = method.map_config()
+    monkeypatch.setattr(VersionedColorEncoder, "version", "b")
+    assert create_method("openreloc", encoder="mean-color-versioned", mapping=MAPPING).map_config() != before
+    with pytest.raises(DataError, match="rebuild the map"):
+        create_method("openreloc", no_language=True).load_map(tmp_path / "map")

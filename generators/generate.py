@@ -99,6 +99,8 @@ def generate_scene(spec: SceneSpec, out_dir: Path | str, resume: bool = False, p
             raise ConfigError(f"{root}: was generated from a different spec; cannot resume (delete it or drop --resume)")
         if not resume:
             shutil.rmtree(root)
+        else:
+            io.remove_stray_temps(root)
     layout = build_layout(spec)
     K = geometry.intrinsics_from_fov(spec.width, spec.height, spec.fov_y)
     writer = SceneWriter(root)

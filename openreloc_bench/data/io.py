@@ -20,6 +20,13 @@ from openreloc_bench.errors import DataError
 DEPTH_SCALE_MM = 1000.0  # depth PNG stores uint16 millimetres (ScanNet convention)
 
 
+def remove_stray_temps(root: Path | str) -> None:
+    """Delete the temp files of atomic writes a killed process never renamed (SIGKILL skips the
+    clean-up below); they are never results, so a resumed run starts from a clean tree."""
+    for p in Path(root).rglob(".*.tmp"):
+        p.unlink(missing_ok=True)
+
+
 def atomic_write_bytes(path: Path | str, data: bytes) -> None:
     """Write ``data`` to ``path`` atomically: readers see the old file or the new one, never a part."""
     path = Path(path)

@@ -362,19 +362,13 @@ def plan(cfg: EvalConfig) -> tuple[list[MapJob], list[QueryJob]]:
     return map_jobs, query_jobs
 
 
-def _clean_stray_temps(root: Path) -> None:
-    """Temp files of writes a killed run never renamed (atomic writes: never a result file)."""
-    for p in root.rglob(".*.tmp"):
-        p.unlink(missing_ok=True)
-
-
 def evaluate(cfg: EvalConfig) -> EvalReport:
     """Run an evaluation; per-job errors are collected in the report, the run goes on."""
     t0 = time.perf_counter()
     report = EvalReport()
     map_jobs, query_jobs = plan(cfg)
     if cfg.out.exists():
-        _clean_stray_temps(cfg.out)
+        io.remove_stray_temps(cfg.out)
     # several variants may share a map (same method config): build each distinct map dir once
     unique: dict[Path, MapJob] = {}
     for j in map_jobs:

@@ -45,6 +45,15 @@ def test_no_temp_files_left(tiny_scene: Path):
     assert not list(tiny_scene.rglob("*.tmp"))
 
 
+def test_stray_temps_of_a_killed_writer_are_removed(tmp_path: Path):
+    """SIGKILL mid-write leaves '.<name>.<random>.tmp' (the except clause never runs); resumes remove them."""
+    io.atomic_write_bytes(tmp_path / "a" / "kept.png", b"x")
+    stray = tmp_path / "a" / ".000008.png.ppbykng7.tmp"
+    stray.write_bytes(b"partial")
+    io.remove_stray_temps(tmp_path)
+    assert not stray.exists() and (tmp_path / "a" / "kept.png").read_bytes() == b"x"
+
+
 def _first(scene: Path, sub: str) -> Path:
     return sorted((scene / "mapping" / sub).iterdir())[0]
 

@@ -140,9 +140,10 @@ def build_object_map(
         "graph_edges": graph.number_of_edges(),
         "timings_s": {**timer.times, "total": round(sum(timer.times.values()), 4)},
     }
+    encoder_info = encoder.config()
+    encoder_info["fingerprint"] = encoder.weights_fingerprint(**encoder_info)  # load_map checks it
     return ObjectMap(landmarks, rfs, graph, np.asarray(mapping_seq.K, dtype=np.float64), mapping_seq.width,
-                     mapping_seq.height, {**encoder.config(), "fingerprint": encoder.weights_fingerprint(**encoder.config())},
-                     cfg_mod.to_dict(config), stats)
+                     mapping_seq.height, encoder_info, cfg_mod.to_dict(config), stats)
 
 
 def _downsample(points: np.ndarray, voxel: float, cap: int, rng: np.random.Generator) -> np.ndarray:

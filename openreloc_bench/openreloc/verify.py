@@ -58,9 +58,12 @@ class Verification:
     """Query object index -> landmark row (into the landmark arrays given to :func:`verify_matches`)."""
     T_wc: np.ndarray
     """(4, 4) camera-to-world pose consistent with every assigned match."""
-    inliers: int
     hypotheses: int
     """P3P poses scored."""
+
+    @property
+    def inliers(self) -> int:
+        return len(self.assignment)
 
 
 @dataclass
@@ -116,7 +119,7 @@ def verify_matches(
         assignment, T_cw = candidate, geometry.make_pose(*refit)
     if len(assignment) < cfg.min_inliers:
         return None
-    return Verification(assignment, geometry.invert(T_cw), len(assignment), len(poses))
+    return Verification(assignment, geometry.invert(T_cw), len(poses))
 
 
 class _CandidateTable:

@@ -20,18 +20,16 @@ from tqdm import tqdm
 
 from generators.layout import Layout, build_layout
 from generators.render import Renderer, create_renderer
-from generators.spec import SceneSpec, SuiteSpec, spec_hash
+from generators.spec import GENERATOR_VERSION, SceneSpec, SuiteSpec, spec_hash
 from generators.trajectories import mapping_trajectory, sample_queries
 from generators.variants import LIGHT_SPLITS, Lighting, light_variants, sample_displacements
-from openreloc_bench import __version__, config, geometry
+from openreloc_bench import config, geometry
 from openreloc_bench.data import io
 from openreloc_bench.data.scene import SceneWriter
 from openreloc_bench.errors import ConfigError
 
 log = logging.getLogger(__name__)
 
-GENERATOR_VERSION = f"{__version__}+gen1"
-"""Recorded in scene.json; bump the suffix whenever output for the same spec changes."""
 
 
 def scene_info(spec: SceneSpec, layout: Layout, K: np.ndarray, counts: dict[str, int], extra: dict) -> dict:

@@ -17,8 +17,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
 
-from openreloc_bench import config
+from openreloc_bench import __version__, config
 from openreloc_bench.errors import ConfigError
+
+GENERATOR_VERSION = f"{__version__}+gen2"
+"""Recorded in scene.json and part of :func:`spec_hash`; bump the suffix whenever output for the same spec
+changes, so cached maps and results of scenes from an older generator are not reused.
+gen2: rooms stay connected (pendant lights and one-cell gaps no longer cut corridors) and queries are
+drawn only from the walkable region the mapping sequence covers."""
 
 TRAINING_SEED_MIN = 1_000_000
 """Seeds >= this are reserved for encoder TRAINING scenes; suite validation rejects them."""
@@ -181,6 +187,6 @@ def load_suite(path: Path | str) -> SuiteSpec:
 
 
 def spec_hash(spec: SceneSpec) -> str:
-    """Stable short hash of everything that determines a scene's content."""
-    payload = json.dumps(config.to_dict(spec), sort_keys=True).encode()
+    """Stable short hash of everything that determines a scene's content: the spec and the generator version."""
+    payload = json.dumps({"generator": GENERATOR_VERSION, "spec": config.to_dict(spec)}, sort_keys=True).encode()
     return hashlib.sha256(payload).hexdigest()[:16]

@@ -121,11 +121,18 @@ class _PathFinder:
         return self.occ.centre(cells[:, 0], cells[:, 1])
 
 
-def _snap_free(occ: Occupancy, pts: np.ndarray, room_k: int) -> np.ndarray:
-    """Move points to the nearest cell of the same room in the floor's largest connected free region."""
+def walkable_region(occ: Occupancy) -> np.ndarray:
+    """bool grid: the floor's largest connected free region. Mapping paths stay in it (so paths always
+    exist) and queries are drawn from it, so every query stands where the mapping sequence could go."""
     labels, n = ndimage.label(occ.free, structure=np.ones((3, 3)))
-    main = np.bincount(labels.ravel(), minlength=2)[1:].argmax() + 1 if n else -1
-    ok = (labels == main) & (occ.room_index == room_k)  # the floor's main walkable region: paths always exist
+    if not n:
+        return np.zeros_like(occ.free)
+    return labels == np.bincount(labels.ravel(), minlength=2)[1:].argmax() + 1
+
+
+def _snap_free(occ: Occupancy, pts: np.ndarray, room_k: int) -> np.ndarray:
+    """Move points to the nearest cell of the same room in the floor's walkable region."""
+    ok = walkable_region(occ) & (occ.room_index == room_k)
     if not ok.any():
         return np.empty((0, 2))
     _, (ri, ci) = ndimage.distance_transform_edt(~ok, return_indices=True)
@@ -290,7 +297,7 @@ def sample_queries(layout: Layout, spec: SceneSpec, mapping: np.ndarray, rendere
     """Query poses with a real viewpoint change and enough visible objects (deterministic in the seed)."""
     rng = np.random.default_rng([spec.seed, 13])
     occs = [occupancy_grid(layout, f) for f in range(len(layout.floor_z))]
-    cells = [np.argwhere(o.free & (o.room_index >= 0)) for o in occs]
+    cells = [np.argwhere(walkable_region(o) & (o.room_index >= 0)) for o in occs]
     if not any(len(c) for c in cells):
         raise RuntimeError("no free space for query poses")
     weights = np.array([len(c) for c in cells], float)

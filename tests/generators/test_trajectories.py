@@ -2,14 +2,18 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 from generators.layout import build_layout
 from generators.render import create_renderer
-from generators.spec import SceneSpec
-from generators.trajectories import QUERY_HEIGHT, mapping_trajectory, occupancy_grid, sample_queries
+from generators.spec import SceneSpec, load_suite
+from generators.trajectories import QUERY_HEIGHT, mapping_trajectory, occupancy_grid, sample_queries, walkable_region
 from openreloc_bench import geometry
+
+SUITES = Path(__file__).resolve().parents[2] / "scenes"
 
 SPEC = SceneSpec(name="t", kind="multi-room", seed=21, rooms=3, objects_per_room=10, width=96, height=72,
                  n_query=5, mapping_step_m=0.25, mapping_step_deg=15.0)
@@ -22,9 +26,7 @@ def scene():
     return layout, mapping
 
 
-def test_occupancy_excludes_objects_and_connects_rooms(scene) -> None:
-    from scipy import ndimage
-
+def test_occupancy_excludes_objects(scene) -> None:
     layout, _ = scene
     occ = occupancy_grid(layout, 0)
     assert occ.free.any()
@@ -32,10 +34,22 @@ def test_occupancy_excludes_objects_and_connects_rooms(scene) -> None:
         if not inst.structural and inst.aabb[0, 2] < 1.9 and inst.aabb[1, 2] > 0.05:
             c = inst.aabb.mean(axis=0)[:2]
             assert not occ.is_free(c[None])[0], inst.category
-    labels, _ = ndimage.label(occ.free, structure=np.ones((3, 3)))
-    main = np.bincount(labels[labels > 0]).argmax()
-    for k, room in enumerate(occ.rooms):  # every room reaches the main free component through its doors
-        assert (labels[occ.room_index == k] == main).any(), room.name
+
+
+# sc6 of the multi-room suite under gen1: a pendant light and one-cell gaps cut its corridor in three,
+# so five of eight rooms were never mapped but still got queries
+CONNECTED = {"small": SPEC, "sc6-regression": next(s for s in load_suite(SUITES / "multi-room.yaml").scene_specs()
+                                                    if s.name == "sc6")}
+
+
+@pytest.mark.parametrize("name", list(CONNECTED))
+def test_every_room_is_in_the_walkable_region(name: str) -> None:
+    layout = build_layout(CONNECTED[name])
+    occ = occupancy_grid(layout, 0)
+    region = walkable_region(occ)
+    for k, room in enumerate(occ.rooms):
+        free = occ.free & (occ.room_index == k)
+        assert (region & free).sum() >= 0.9 * free.sum(), room.name
 
 
 def test_mapping_scan(scene) -> None:
@@ -68,5 +82,7 @@ def test_queries_change_viewpoint_and_see_objects(scene) -> None:
         d = np.linalg.norm(mapping[:, :3, 3] - eye, axis=1)
         assert d.min() >= SPEC.query_min_distance and info.distance_m == pytest.approx(d.min(), abs=1e-3)
         assert info.visible_objects >= SPEC.query_min_objects
+    occ = occupancy_grid(layout, 0)
+    assert walkable_region(occ)[occ.cell(poses[:, :2, 3])].all()  # only where the mapping sequence goes
     pitch = np.degrees(np.arcsin(-poses[:, 2, 2]))
     assert pitch.std() > 3  # varied pitch

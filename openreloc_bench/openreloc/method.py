@@ -139,9 +139,12 @@ class OpenReLoc:
         cfg = self.config
         self.map = m = ObjectMap.load(map_dir)
         enc = dict(m.encoder)
-        built_with = enc.pop("fingerprint", "")
+        built_with = enc.pop("fingerprint", None)
         name = enc.pop("name")
-        if built_with and built_with != (now := encoder_fingerprint(name, enc)):
+        if built_with is None:  # maps from before fingerprints: their weights cannot be checked
+            raise DataError(map_dir, f"records no {name} encoder weights fingerprint (built by an older version): "
+                                     "rebuild the map")
+        if built_with != (now := encoder_fingerprint(name, enc)):
             raise DataError(map_dir, f"built with {name} encoder weights {built_with}, but the installed weights are "
                                      f"{now}: rebuild the map (descriptors from other weights cannot be compared)")
         self.encoder = create_encoder(name, **enc)

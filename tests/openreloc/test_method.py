@@ -13,6 +13,7 @@ from openreloc_bench import geometry
 from openreloc_bench.data.scene import Scene
 from openreloc_bench.errors import ConfigError, DataError
 from openreloc_bench.methods import Failure, PoseEstimate, QueryFrame, create_method
+from openreloc_bench.openreloc.map import ObjectMap
 from openreloc_bench.vision.base import register_encoder
 
 register_encoder("mean-color")(MeanColorEncoder)
@@ -216,3 +217,16 @@ def test_map_from_other_encoder_weights_is_refused_and_not_reused(tmp_path: Path
     assert create_method("openreloc", encoder="mean-color-versioned", mapping=MAPPING).map_config() != before
     with pytest.raises(DataError, match="rebuild the map"):
         create_method("openreloc", no_language=True).load_map(tmp_path / "map")
+
+
+def test_map_without_weights_fingerprint_is_refused(tmp_path: Path) -> None:
+    """Maps written before fingerprints existed cannot prove which weights made their descriptors."""
+    seq = Scene(write_boxworld(tmp_path / "scene", n_frames=16, hw=HW)).sequence("mapping")
+    method = create_method("openreloc", encoder="mean-color-versioned", mapping=MAPPING)
+    method.build_map(seq, tmp_path / "map")
+    old = ObjectMap.load(tmp_path / "map")
+    old.encoder.pop("fingerprint")
+    old.save(tmp_path / "old")
+    create_method("openreloc", no_language=True).load_map(tmp_path / "map")  # the current map loads
+    with pytest.raises(DataError, match="fingerprint.*rebuild the map"):
+        create_method("openreloc", no_language=True).load_map(tmp_path / "old")

@@ -31,7 +31,6 @@ from openreloc_bench.errors import ConfigError
 log = logging.getLogger(__name__)
 
 
-
 def scene_info(spec: SceneSpec, layout: Layout, K: np.ndarray, counts: dict[str, int], extra: dict) -> dict:
     """Content of scene.json (no timestamps or paths: it must be byte-identical across runs)."""
     return {

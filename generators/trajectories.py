@@ -130,9 +130,9 @@ def walkable_region(occ: Occupancy) -> np.ndarray:
     return labels == np.bincount(labels.ravel(), minlength=2)[1:].argmax() + 1
 
 
-def _snap_free(occ: Occupancy, pts: np.ndarray, room_k: int) -> np.ndarray:
-    """Move points to the nearest cell of the same room in the floor's walkable region."""
-    ok = walkable_region(occ) & (occ.room_index == room_k)
+def _snap_free(occ: Occupancy, region: np.ndarray, pts: np.ndarray, room_k: int) -> np.ndarray:
+    """Move points to the nearest cell of the same room in the floor's walkable ``region``."""
+    ok = region & (occ.room_index == room_k)
     if not ok.any():
         return np.empty((0, 2))
     _, (ri, ci) = ndimage.distance_transform_edt(~ok, return_indices=True)
@@ -144,7 +144,7 @@ def _snap_free(occ: Occupancy, pts: np.ndarray, room_k: int) -> np.ndarray:
     return snapped[keep]
 
 
-def _room_loop(occ: Occupancy, k: int, room: Room, start: np.ndarray) -> np.ndarray:
+def _room_loop(occ: Occupancy, region: np.ndarray, k: int, room: Room, start: np.ndarray) -> np.ndarray:
     x0, y0, x1, y1 = room.rect
     inset = float(np.clip(0.25 * min(x1 - x0, y1 - y0), WALL_CLEARANCE + 0.1, 1.1))
     corners = np.array([[x0 + inset, y0 + inset], [x1 - inset, y0 + inset], [x1 - inset, y1 - inset], [x0 + inset, y1 - inset]])
@@ -154,7 +154,7 @@ def _room_loop(occ: Occupancy, k: int, room: Room, start: np.ndarray) -> np.ndar
     pts = np.stack([np.interp(s, np.r_[0, np.cumsum(seg)], ring[:, i]) for i in range(2)], axis=1)
     first = int(np.argmin(np.linalg.norm(pts - start, axis=1)))
     pts = np.roll(pts, -first, axis=0)
-    return _snap_free(occ, np.vstack([pts, pts[:1]]), k)
+    return _snap_free(occ, region, np.vstack([pts, pts[:1]]), k)
 
 
 def _line_free(occ: Occupancy, a: np.ndarray, b: np.ndarray) -> bool:
@@ -206,6 +206,7 @@ def mapping_trajectory(layout: Layout, spec: SceneSpec) -> np.ndarray:
     for f in range(len(layout.floor_z)):
         occ = occupancy_grid(layout, f)
         finder = _PathFinder(occ)
+        region = walkable_region(occ)  # labelled once per floor, not once per room
         rooms = occ.rooms
         g = layout.room_graph().subgraph(r.name for r in rooms)
         order = [n for n in nx.dfs_preorder_nodes(g, rooms[0].name)]
@@ -214,7 +215,7 @@ def mapping_trajectory(layout: Layout, spec: SceneSpec) -> np.ndarray:
         pos = None
         for name in order:
             k, room = by_name[name]
-            loop = _room_loop(occ, k, room, room.centre[:2] if pos is None else pos)
+            loop = _room_loop(occ, region, k, room, room.centre[:2] if pos is None else pos)
             if len(loop) < 2:
                 continue
             if pos is not None:

@@ -21,11 +21,12 @@ import os
 import struct
 import sys
 from abc import ABC, abstractmethod
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
+from generators.asset_library.core import Part
 from generators.layout import DOOR_H, DOOR_W, WALL_T, Layout
 from generators.materials import make_texture
 from openreloc_bench import geometry
@@ -43,6 +44,10 @@ TEXTURE_TILE_M = 0.5
 """World size of one texture tile (m): textures are mapped in object-frame metres."""
 TEXTURE_PX = 64
 ZNEAR_M = 0.02
+MAX_MATERIALS = 999
+"""Most materials (and textures) MuJoCo's classic renderer uploads per model: ``MjrContext`` fails with
+"Maximum number of materials is 1000" from 1000 on (measured with MuJoCo 4.0; the constant is not exposed
+by the Python bindings)."""
 
 
 class Renderer(ABC):
@@ -120,6 +125,27 @@ def msh_bytes(vertices: np.ndarray, normals: np.ndarray, uv: np.ndarray, faces: 
                              for a, dt in ((vertices, "<f4"), (normals, "<f4"), (uv, "<f4"), (faces, "<i4")))
 
 
+def _texture_keys(parts: list[Part]) -> Callable[[Part], tuple]:
+    """Key under which a part's texture (and material) is shared: (material, colour, seed), so every part
+    gets its own noise pattern. A scene with more distinct keys than :data:`MAX_MATERIALS` (a large
+    multi-floor house) folds the seeds of each (material, colour) into the most variants that fit;
+    scenes within the limit render exactly as before."""
+
+    def keyed(variants: int | None) -> Callable[[Part], tuple]:
+        def key(part: Part) -> tuple:
+            seed = int(part.texture_seed)
+            return (part.material, tuple(round(float(c), 6) for c in part.rgb), seed if variants is None else seed % variants)
+
+        return key
+
+    if len({keyed(None)(p) for p in parts}) <= MAX_MATERIALS:
+        return keyed(None)
+    for variants in range(MAX_MATERIALS, 0, -1):
+        if len({keyed(variants)(p) for p in parts}) <= MAX_MATERIALS:
+            return keyed(variants)
+    raise ConfigError(f"the scene has more than {MAX_MATERIALS} distinct (material, colour) pairs, MuJoCo's limit")
+
+
 def build_mjcf(layout: Layout, max_width: int, max_height: int) -> tuple[str, dict[str, bytes], list[int]]:
     """MJCF text, in-memory assets and the instance id of every geom (in geom order)."""
     assets: dict[str, bytes] = {}
@@ -131,12 +157,13 @@ def build_mjcf(layout: Layout, max_width: int, max_height: int) -> tuple[str, di
     lo = np.min([i.aabb[0] for i in layout.instances], axis=0)
     hi = np.max([i.aabb[1] for i in layout.instances], axis=0)
     extent = float(np.linalg.norm(hi - lo)) + 1.0
+    texture_key = _texture_keys([p for inst in layout.instances for p in inst.parts])
     for inst in layout.instances:
         T = inst.transform
         quat = geometry.rotmat_to_quat(T[:3, :3])
         pos = T[:3, 3]
         for part in inst.parts:
-            key = (part.material, tuple(round(float(c), 6) for c in part.rgb), int(part.texture_seed))
+            key = texture_key(part)
             if key not in tex_names:
                 name = f"t{len(tex_names)}"
                 tex_names[key] = name
@@ -231,7 +258,6 @@ class MujocoRenderer(Renderer):
             try:
                 self._gl = gl_context.GLContext(*self._max_size)
                 self._gl.make_current()
-                self._mjr = mujoco.MjrContext(self.model, mujoco.mjtFontScale.mjFONTSCALE_100)
             except Exception as e:  # EGL missing or broken: fall back to OSMesa
                 if os.environ.get("MUJOCO_GL") != "egl":
                     raise
@@ -241,7 +267,7 @@ class MujocoRenderer(Renderer):
                 os.environ["MUJOCO_GL"] = "osmesa"
                 self._gl = GLContext(*self._max_size)
                 self._gl.make_current()
-                self._mjr = mujoco.MjrContext(self.model, mujoco.mjtFontScale.mjFONTSCALE_100)
+            self._mjr = mujoco.MjrContext(self.model, mujoco.mjtFontScale.mjFONTSCALE_100)
             mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, self._mjr)
             self._mjr.readDepthMap = mujoco.mjtDepthMap.mjDEPTH_ZEROFAR
         else:
@@ -419,7 +445,8 @@ class MujocoRenderer(Renderer):
     def close(self) -> None:
         if self._gl is not None:
             self._gl.make_current()
-            self._mjr.free()
+            if self._mjr is not None:
+                self._mjr.free()
             self._gl.free()
         self._gl, self._mjr = None, None
 

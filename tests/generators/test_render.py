@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from generators.layout import Instance, Layout, Light, Room, _part, box_mesh
-from generators.render import create_renderer, fovy_from_K
+from generators import render
+from generators.render import MAX_MATERIALS, create_renderer, fovy_from_K
 from openreloc_bench import geometry
 from openreloc_bench.errors import ConfigError
 
@@ -119,3 +120,41 @@ def test_culling_is_exact(monkeypatch) -> None:
                 rgb2, depth2, inst2 = r.render(T, K, W, H)
                 assert np.array_equal(rgb, rgb2) and np.array_equal(inst, inst2) and np.array_equal(depth, depth2)
         assert np.mean(drawn) < 0.5  # and it actually culls
+
+
+def _many_boxes(n: int, colours: tuple[str, ...]) -> Layout:
+    """n small boxes in a row, cycling through ``colours``, every part with its own texture seed."""
+    insts = [_box(1, (0, 0, -0.1), (n * 0.1, 2, 0), "brown", "floor", True)]
+    insts += [_box(i + 2, (0.1 * i, 1.0, 0), (0.1 * i + 0.05, 1.05, 0.05), colours[i % len(colours)], "box", False)
+              for i in range(n)]
+    return Layout([Room("r", "living", 0, (0, 0, n * 0.1, 2), 0.0, 2.7)], [], [Light(np.array([1, 1, 2.3]), "r", 0)],
+                  insts, (n * 0.1, 2.0), [0.0], 2.7)
+
+
+def test_scene_beyond_mujocos_material_limit_renders() -> None:
+    """A large house has more textured parts than MuJoCo's 1000 materials: texture seeds are folded per
+    (material, colour) so the model fits, and every instance still renders with its own id."""
+    layout = _many_boxes(MAX_MATERIALS + 100, ("red", "blue", "green"))
+    r = create_renderer(layout, "mujoco", W, H)
+    try:
+        assert r.model.nmat <= MAX_MATERIALS < len(layout.instances)
+        T = geometry.look_at([0.5, 0.2, 0.4], [0.5, 1.0, 0.0])
+        _, depth, inst = r.render(T, K, W, H)
+        assert (depth > 0).any() and len(np.unique(inst)) > 3
+    finally:
+        r.close()
+
+
+@pytest.mark.parametrize("limit, expected", [(100, 13), (6, 5), (3, 3)])
+def test_texture_seeds_fold_only_beyond_the_limit(monkeypatch, limit: int, expected: int) -> None:
+    """Within the limit every part keeps its own texture (scenes render as before); beyond it, the most
+    seed variants per (material, colour) that fit; more colours than the limit is a clear error."""
+    monkeypatch.setattr(render, "MAX_MATERIALS", limit)
+    xml = render.build_mjcf(_many_boxes(12, ("red", "blue")), W, H)[0]
+    assert xml.count("<material ") == expected
+
+
+def test_more_colours_than_materials_is_a_clear_error(monkeypatch) -> None:
+    monkeypatch.setattr(render, "MAX_MATERIALS", 2)
+    with pytest.raises(ConfigError, match="distinct"):
+        render.build_mjcf(_many_boxes(12, ("red", "blue")), W, H)

@@ -44,10 +44,10 @@ TEXTURE_TILE_M = 0.5
 """World size of one texture tile (m): textures are mapped in object-frame metres."""
 TEXTURE_PX = 64
 ZNEAR_M = 0.02
-MAX_MATERIALS = 999
-"""Most materials (and textures) MuJoCo's classic renderer uploads per model: ``MjrContext`` fails with
-"Maximum number of materials is 1000" from 1000 on (measured with MuJoCo 4.0; the constant is not exposed
-by the Python bindings)."""
+MAX_MATERIALS = 998
+"""Most materials MuJoCo's classic renderer accepts per model: ``MjrContext`` fails ("Maximum number of
+materials is 1000") once ``nmat >= mjMAXMATERIAL - 1`` (MuJoCo 4.0; the constant is not exposed by the
+Python bindings)."""
 
 
 class Renderer(ABC):

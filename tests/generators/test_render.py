@@ -131,13 +131,15 @@ def _many_boxes(n: int, colours: tuple[str, ...]) -> Layout:
                   insts, (n * 0.1, 2.0), [0.0], 2.7)
 
 
-def test_scene_beyond_mujocos_material_limit_renders() -> None:
-    """A large house has more textured parts than MuJoCo's 1000 materials: texture seeds are folded per
+@pytest.mark.parametrize("parts", [MAX_MATERIALS, MAX_MATERIALS + 100])
+def test_scene_at_and_beyond_mujocos_material_limit_renders(parts: int) -> None:
+    """A large house has more textured parts than MuJoCo accepts materials: texture seeds are folded per
     (material, colour) so the model fits, and every instance still renders with its own id."""
-    layout = _many_boxes(MAX_MATERIALS + 100, ("red", "blue", "green"))
+    layout = _many_boxes(parts - 1, ("red", "blue", "green"))  # plus the floor
     r = create_renderer(layout, "mujoco", W, H)
     try:
-        assert r.model.nmat <= MAX_MATERIALS < len(layout.instances)
+        assert r.model.nmat <= MAX_MATERIALS
+        assert (r.model.nmat == parts) == (parts <= MAX_MATERIALS)
         T = geometry.look_at([0.5, 0.2, 0.4], [0.5, 1.0, 0.0])
         _, depth, inst = r.render(T, K, W, H)
         assert (depth > 0).any() and len(np.unique(inst)) > 3

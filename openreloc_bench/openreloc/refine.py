@@ -58,6 +58,13 @@ class RefineConfig:
     """Relative improvement that counts as progress for the plateau rule."""
     lr_reductions: int = 4
     """Early stopping: stop once the learning rates have been halved this many times."""
+    stall_patience: int = 10
+    """Beyond the paper (speed): also stop once the lowest loss of any hypothesis (the one that would be
+    returned) has not improved by ``plateau_threshold`` (relative) for this many steps. The learning-rate
+    rule above watches the *summed* loss, which far-off hypotheses keep lowering long after the best one
+    has settled: measured on 60 gen2 multi-room queries, 200 -> 117 steps with identical recall. 0 = off."""
+    stall_min_iterations: int = 40
+    """The stall rule applies only from this step on (after outlier masking has settled)."""
     max_points: int = 300
     """Landmark points per object used in the loss (random subset, fixed seed)."""
     max_mask_pixels: int = 300
@@ -324,6 +331,16 @@ def _weights(obj_losses: torch.Tensor, cfg: RefineConfig, active: bool, unit: fl
     return (losses <= limit).float()
 
 
+def _stalled(lowest: list[float], cfg: RefineConfig, it: int) -> bool:
+    """Whether the lowest loss (``lowest[k]`` after step k + 1) improved by less than ``plateau_threshold``
+    over the last ``stall_patience`` steps (see :attr:`RefineConfig.stall_patience`)."""
+    p = cfg.stall_patience
+    if p <= 0 or it < max(cfg.stall_min_iterations, p + 1):
+        return False
+    before, now = lowest[-1 - p], lowest[-1]
+    return bool(np.isfinite(before)) and now > (1.0 - cfg.plateau_threshold) * before
+
+
 def _delta_at(cfg: RefineConfig, it: int) -> float:
     """Huber threshold of step ``it`` (1-based): geometric decay from ``huber_delta_start`` to ``huber_delta``."""
     if cfg.huber_delta_start <= cfg.huber_delta or cfg.anneal_steps <= 0:
@@ -391,6 +408,7 @@ def _optimise(T_inits: list[np.ndarray], K: np.ndarray, targets: list[RefineTarg
     initial = torch.full((B,), float("nan"))
     alive = torch.ones(B, dtype=torch.bool)
     why: list[str | None] = [None] * B
+    lowest: list[float] = []  # lowest best loss over the hypotheses, per step (stall rule)
     it = 0
     for it in range(1, cfg.max_iterations + 1):
         delta = _delta_at(cfg, it)
@@ -421,6 +439,9 @@ def _optimise(T_inits: list[np.ndarray], K: np.ndarray, targets: list[RefineTarg
         if annealed:
             sched.step(float(value[alive].sum()) if alive.any() else 0.0)
         if opt.param_groups[0]["lr"] < cfg.lr_rotation * 0.5**cfg.lr_reductions * 1.0001:
+            break
+        lowest.append(float(best_loss.min()))
+        if _stalled(lowest, cfg, it):
             break
     return _results(problem, T_inits, targets, best_q, best_t, initial, why, it)
 

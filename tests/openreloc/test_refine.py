@@ -138,8 +138,8 @@ def test_occlusion_aware_forward_path_converges_where_the_literal_one_is_dragged
 def test_batched_hypotheses_match_separate_runs() -> None:
     targets = targets_at(T_GT)
     starts = [perturbed(0, 0.03, 0.1), perturbed(1, 0.03, 0.1)]
-    # the plateau rule watches the summed loss of all hypotheses, so compare with it disabled
-    fixed = RefineConfig(max_iterations=40, plateau_patience=10_000)
+    # the plateau and stall rules watch all hypotheses together, so compare with them disabled
+    fixed = RefineConfig(max_iterations=40, plateau_patience=10_000, stall_patience=0)
     batched = refine_poses(starts, K, targets, fixed)
     for T0, b in zip(starts, batched):
         single = refine_pose(T0, K, targets, fixed)
@@ -162,6 +162,18 @@ def test_one_diverging_hypothesis_does_not_stop_the_others() -> None:
     res = refine_poses([perturbed(0, 0.03, 0.1), bad], K, targets, RefineConfig(max_iterations=60))
     assert res[0].reason is None and res[0].loss < res[1].loss
     assert geometry.translation_error(T_GT, res[0].T_wc) < 0.1
+
+
+def test_refinement_stops_once_the_best_hypothesis_has_settled() -> None:
+    """A far-off hypothesis keeps lowering the summed loss for all 200 steps; the stall rule stops
+    when the near one (the answer) has settled, and returns the same answer."""
+    targets = targets_at(T_GT)
+    starts = [perturbed(0, 0.01, 0.05), perturbed(2, 0.1, 0.6)]
+    full = refine_poses(starts, K, targets, RefineConfig(stall_patience=0))
+    fast = refine_poses(starts, K, targets, RefineConfig())
+    assert fast[0].iterations < full[0].iterations / 2, (fast[0].iterations, full[0].iterations)
+    assert fast[0].loss == pytest.approx(full[0].loss, rel=0.05) and fast[0].loss < fast[1].loss
+    assert geometry.translation_error(full[0].T_wc, fast[0].T_wc) < 0.01
 
 
 @pytest.mark.parametrize("delta_start", [0.0, 40.0])

@@ -130,20 +130,21 @@ def _texture_keys(parts: list[Part]) -> Callable[[Part], tuple]:
     gets its own noise pattern. A scene with more distinct keys than :data:`MAX_MATERIALS` (a large
     multi-floor house) folds the seeds of each (material, colour) into the most variants that fit;
     scenes within the limit render exactly as before."""
-
-    def keyed(variants: int | None) -> Callable[[Part], tuple]:
-        def key(part: Part) -> tuple:
-            seed = int(part.texture_seed)
-            return (part.material, tuple(round(float(c), 6) for c in part.rgb), seed if variants is None else seed % variants)
-
-        return key
-
-    if len({keyed(None)(p) for p in parts}) <= MAX_MATERIALS:
-        return keyed(None)
-    for variants in range(MAX_MATERIALS, 0, -1):
-        if len({keyed(variants)(p) for p in parts}) <= MAX_MATERIALS:
-            return keyed(variants)
+    seeds: dict[tuple, set[int]] = {}
+    for p in parts:
+        seeds.setdefault(_appearance(p), set()).add(int(p.texture_seed))
+    if sum(map(len, seeds.values())) <= MAX_MATERIALS:
+        return lambda p: (*_appearance(p), int(p.texture_seed))
+    # the count is not monotone in the number of variants (seed % v), so try them from the largest down
+    for variants in range(max(map(len, seeds.values())), 0, -1):
+        if sum(len({s % variants for s in group}) for group in seeds.values()) <= MAX_MATERIALS:
+            return lambda p, v=variants: (*_appearance(p), int(p.texture_seed) % v)
     raise ConfigError(f"the scene has more than {MAX_MATERIALS} distinct (material, colour) pairs, MuJoCo's limit")
+
+
+def _appearance(part: Part) -> tuple:
+    """(material, colour) of a part, the colour rounded so float noise never splits a texture."""
+    return (part.material, tuple(round(float(c), 6) for c in part.rgb))
 
 
 def build_mjcf(layout: Layout, max_width: int, max_height: int) -> tuple[str, dict[str, bytes], list[int]]:

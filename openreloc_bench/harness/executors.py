@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import multiprocessing as mp
 import os
+import threading
+import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from typing import Any, Callable, Iterator, Protocol, Sequence, TypeVar
 
@@ -31,6 +33,27 @@ def mp_context() -> mp.context.BaseContext:
     ctx = mp.get_context("forkserver")
     ctx.set_forkserver_preload(["openreloc_bench.harness.runner"])
     return ctx
+
+
+def exit_with(parent_pid: int, poll_s: float = 1.0) -> None:
+    """Pool-worker initializer: exit as soon as process ``parent_pid`` (the one running the pool) is gone.
+
+    Killing an eval (SIGTERM, SIGKILL) ends only its main process; the workers are children of the
+    fork server, not of it, so without this they finish their jobs and write results for a run that
+    was stopped (seen: orphans still running 50 minutes later, next to a new run on the same folder).
+    """
+
+    def watch() -> None:
+        while True:
+            time.sleep(poll_s)
+            try:
+                os.kill(parent_pid, 0)
+            except ProcessLookupError:
+                os._exit(1)
+            except PermissionError:  # the pid exists (reused by another user's process): keep polling
+                pass
+
+    threading.Thread(target=watch, name="exit-with-parent", daemon=True).start()
 
 
 class Executor(Protocol):
@@ -54,7 +77,8 @@ class LocalExecutor:
     def map(self, fn: Callable[[J], Any], jobs: Sequence[J]) -> Iterator[tuple[J, Any]]:
         if not jobs:
             return
-        with ProcessPoolExecutor(max_workers=min(self.workers, len(jobs)), mp_context=mp_context()) as pool:
+        with ProcessPoolExecutor(max_workers=min(self.workers, len(jobs)), mp_context=mp_context(),
+                                 initializer=exit_with, initargs=(os.getpid(),)) as pool:
             futures = {pool.submit(fn, job): job for job in jobs}
             for fut in as_completed(futures):
                 yield futures[fut], fut.result()

@@ -6,6 +6,7 @@ methods as the test process.
 
 from __future__ import annotations
 
+import os
 import time
 import zlib
 from dataclasses import dataclass
@@ -108,3 +109,9 @@ def make_scene(root: Path, name: str, n_map: int = 4, n_query: int = 3, splits: 
             w.write_frame(split, i, rng.integers(0, 255, (24, 32, 3), dtype=np.uint8),
                           np.full((24, 32), 2.0), rng.integers(0, 4, (24, 32)), geometry.look_at(eye, target))
     return root / name
+
+
+def nap(seconds: float) -> int:
+    """A pool job that sleeps, then returns its worker's pid (executor tests)."""
+    time.sleep(seconds)
+    return os.getpid()

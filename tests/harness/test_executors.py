@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import os
+import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -22,6 +24,36 @@ def _square(x: int) -> int:
 @pytest.mark.parametrize("executor", [InlineExecutor(), LocalExecutor(2)])
 def test_map_yields_every_job_with_its_result(executor) -> None:
     assert sorted(executor.map(_square, [1, 2, 3])) == [(1, 1), (2, 4), (3, 9)]
+
+
+def _running(pid: int) -> bool:
+    try:
+        return "\tZ" not in Path(f"/proc/{pid}/status").read_text().split("State:")[1].splitlines()[0]
+    except (FileNotFoundError, IndexError):
+        return False
+
+
+@pytest.mark.skipif(not Path("/proc").is_dir(), reason="reads /proc")
+def test_pool_workers_exit_when_the_eval_is_killed() -> None:
+    """SIGKILL the process running a pool: its worker, busy with a long job, exits within seconds
+    instead of finishing the job (and writing results) for a run that was stopped."""
+    script = ("from openreloc_bench.harness.executors import LocalExecutor\n"
+              "from harness_test_methods import nap\n"
+              "for _, pid in LocalExecutor(1).map(nap, [0, 120]):\n"
+              "    print(pid, flush=True)\n")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(Path(__file__).parent), os.environ.get("PYTHONPATH", "")])}
+    proc = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, text=True, env=env)
+    try:
+        worker = int(proc.stdout.readline())  # the first job is done; the worker is now in the 120 s one
+        assert _running(worker)
+        proc.kill()
+        proc.wait()
+        deadline = time.monotonic() + 15
+        while _running(worker) and time.monotonic() < deadline:
+            time.sleep(0.2)
+        assert not _running(worker)
+    finally:
+        proc.kill()
 
 
 def test_unknown_executor() -> None:

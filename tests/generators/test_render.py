@@ -150,7 +150,7 @@ def test_scene_at_and_beyond_mujocos_material_limit_renders(parts: int) -> None:
 @pytest.mark.parametrize("limit, expected", [(100, 13), (6, 5), (3, 3)])
 def test_texture_seeds_fold_only_beyond_the_limit(monkeypatch, limit: int, expected: int) -> None:
     """Within the limit every part keeps its own texture (scenes render as before); beyond it, the most
-    seed variants per (material, colour) that fit; more colours than the limit is a clear error."""
+    seed variants per (material, colour) that fit."""
     monkeypatch.setattr(render, "MAX_MATERIALS", limit)
     xml = render.build_mjcf(_many_boxes(12, ("red", "blue")), W, H)[0]
     assert xml.count("<material ") == expected

@@ -298,7 +298,7 @@ class OpenReLoc:
         cfg = self.config
         matched = {mt.query: mt for mt in matches}
         sims = np.stack([o.visual for o in objects]) @ self.descriptors.T
-        evidence = verification_evidence(objects, matches, sims, self.ids, invalid, cfg.verification.candidates)
+        evidence = verification_evidence(objects, matched, sims, self.ids, invalid, cfg.verification.candidates)
         result = verify_matches(evidence, self.centers, self.extremes, K, cfg.verification, seed=cfg.seed)
         if result is None:
             diag["verification"] = {"inliers": 0, "kept": "association"}
@@ -355,15 +355,14 @@ class OpenReLoc:
         return geometry.look_at(eye, target)
 
 
-def verification_evidence(objects: list[QueryObject], matches: list[Match], sims: np.ndarray, ids: list[int],
+def verification_evidence(objects: list[QueryObject], matched: dict[int, Match], sims: np.ndarray, ids: list[int],
                           invalid: frozenset[int], n_candidates: int) -> list[ObjectEvidence]:
-    """Each query object's candidate landmark rows for the verification: its association candidates,
-    then its visual ranking (``sims``: object x landmark row), without invalid landmarks. Objects the
-    association left out get none: it drops an object whose best landmark is a filtered wall or floor
+    """Each query object's candidate landmark rows for the verification (``matched``: query index -> its
+    association match): its association candidates, then its visual ranking (``sims``: object x landmark
+    row), without invalid landmarks. Objects the association left out get none: it drops an object whose best landmark is a filtered wall or floor
     (the object is one), and the verification must not give it a look-alike instead (measured on the
     smoke scene: walls re-matched to a fan and a window, 3 of 8 queries lost)."""
     row_of = {lid: r for r, lid in enumerate(ids)}
-    matched = {mt.query: mt for mt in matches}
     out = []
     for q, o in enumerate(objects):
         rows: list[int] = []

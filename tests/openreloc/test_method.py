@@ -13,7 +13,9 @@ from openreloc_bench import geometry
 from openreloc_bench.data.scene import Scene
 from openreloc_bench.errors import ConfigError, DataError
 from openreloc_bench.methods import Failure, PoseEstimate, QueryFrame, create_method
+from openreloc_bench.openreloc.association import Match, QueryObject
 from openreloc_bench.openreloc.map import ObjectMap
+from openreloc_bench.openreloc.method import verification_evidence
 from openreloc_bench.vision.base import register_encoder
 
 register_encoder("mean-color")(MeanColorEncoder)
@@ -235,13 +237,10 @@ def test_map_without_weights_fingerprint_is_refused(tmp_path: Path) -> None:
 def test_verification_evidence_leaves_out_objects_the_association_dropped() -> None:
     """Object 1 was dropped by the association (its best landmark, 30, is a filtered wall: it is one);
     the verification gives it no candidates rather than its best valid look-alike."""
-    from openreloc_bench.openreloc.association import Match, QueryObject
-    from openreloc_bench.openreloc.method import verification_evidence
-
     mask = np.ones((4, 4), bool)
     objects = [QueryObject(mask=mask, box=np.array([0, 0, 4, 4.0]), visual=np.zeros(2, np.float32)) for _ in range(2)]
     ids = [10, 20, 30]
     sims = np.array([[0.2, 0.9, 0.5], [0.4, 0.1, 0.95]])
-    matches = [Match(query=0, landmark=10, visual_sim=0.2, text_sim=None, how="graph", candidates=[10])]
-    evidence = verification_evidence(objects, matches, sims, ids, frozenset({30}), n_candidates=5)
+    matched = {0: Match(query=0, landmark=10, visual_sim=0.2, text_sim=None, how="graph", candidates=[10])}
+    evidence = verification_evidence(objects, matched, sims, ids, frozenset({30}), n_candidates=5)
     assert [e.candidates for e in evidence] == [[0, 1], []]  # rows: its match first, then by similarity

@@ -1,5 +1,9 @@
 """The OpenReLoc relocalizer: map suite -> association -> coarse prior -> dual-path 2D ICP.
 
+Two stages go beyond the paper, each with a switch: geometric verification of the association
+(:mod:`.verify`, ``verification.enabled``) and the render-and-compare choice among refined hypotheses
+(:mod:`.consistency`, ``consistency.enabled``).
+
 ``OpenReLoc(**overrides)`` takes :class:`OpenReLocConfig` fields (nested sections as dicts), so the
 harness, the CLI's ``--set`` and YAML configs all build it the same way. Every ablation of the
 paper's table is a field: ``no_refine``, ``no_coarse``, ``no_scene_graph``, ``no_language``,
@@ -36,6 +40,13 @@ from openreloc_bench.openreloc.association import (
     uniqueness,
 )
 from openreloc_bench.openreloc.build import MappingConfig, build_object_map
+from openreloc_bench.openreloc.consistency import (
+    ConsistencyConfig,
+    LabelRenderer,
+    candidate_weights,
+    consistency,
+    query_labels,
+)
 from openreloc_bench.openreloc.descriptors import pad_box
 from openreloc_bench.openreloc.explain import PlacedObject, explain_pose
 from openreloc_bench.openreloc.map import ObjectMap
@@ -51,7 +62,7 @@ from openreloc_bench.vision.base import (
     encoder_fingerprint,
 )
 
-STAGES = ("segment", "encode", "describe", "associate", "verify", "retrieve", "refine")
+STAGES = ("segment", "encode", "describe", "associate", "verify", "retrieve", "refine", "compare")
 
 
 @dataclass
@@ -87,6 +98,9 @@ class OpenReLocConfig:
     """Coarse-stage hypotheses (reference frames, PnP); ``top_frames=1, pnp=False`` is the paper's single prior."""
     refinement: RefineConfig = field(default_factory=RefineConfig)
     """Dual-path 2D ICP settings."""
+    consistency: ConsistencyConfig = field(default_factory=ConsistencyConfig)
+    """Beyond the paper: the refined hypothesis that best explains every query mask wins, instead of
+    the one with the lowest ICP loss over the (possibly wrong) matches."""
     mapping: MappingConfig = field(default_factory=MappingConfig)
     """Map building settings (used by ``build_map``)."""
     no_refine: bool = False
@@ -160,6 +174,8 @@ class OpenReLoc:
         self.centers = np.array([m.landmarks[i].center for i in self.ids], dtype=np.float64).reshape(-1, 3)
         self.extremes = np.array([extreme_points(m.landmarks[i].points) for i in self.ids]).reshape(len(self.ids), -1, 3)
         self.crop_padding = float(m.config.get("descriptors", {}).get("padding", 0.1))
+        self.renderer = LabelRenderer([m.landmarks[i].points for i in self.ids], m.width, m.height, cfg.consistency,
+                                      seed=cfg.seed)
 
     # ------------------------------------------------------------------------------------ query
 
@@ -202,6 +218,7 @@ class OpenReLoc:
 
         invalid = frozenset() if cfg.no_filtering else frozenset(set(self.ids) - set(m.valid_ids()))
         verified: np.ndarray | None = None  # the verification stage's pose, when it finds one
+        appearance: np.ndarray | None = None  # (masks, landmarks) visual similarity; none for the oracle
         if cfg.association.oracle:
             if query.instance is None:
                 return Failure("association.oracle (a diagnostic) needs the oracle-mask track", diag)
@@ -215,7 +232,7 @@ class OpenReLoc:
             objects_or_failure = self._objects(rgb, masks, diag, stage)
             if isinstance(objects_or_failure, Failure):
                 return objects_or_failure
-            objects = objects_or_failure
+            objects, appearance = objects_or_failure
             with stage("associate"):
                 graph = None if cfg.no_scene_graph else m.graph
                 # association sees every landmark; filtered ones (walls, floor) only veto the query
@@ -241,12 +258,18 @@ class OpenReLoc:
             rcfg = cfg.refinement if refining else dataclasses.replace(cfg.refinement, max_iterations=0)
             with stage("refine" if refining else "retrieve"):
                 results = refine_poses([T for _, T in hypotheses], K, targets, rcfg, seed=cfg.seed, occluders=occluders)
-            order = sorted(range(len(results)), key=lambda i: (not np.isfinite(results[i].loss), results[i].loss, i))
+            explained = [0.0] * len(results)
+            if cfg.consistency.enabled:
+                with stage("compare"):
+                    explained = self._explained(results, masks, appearance, K)
+            order = sorted(range(len(results)),
+                           key=lambda i: (not np.isfinite(results[i].loss), -explained[i], results[i].loss, i))
             best = order[0]
             res = results[best]
             diag["hypotheses"] = [{"source": src, "initial_loss": _num(r.initial_loss), "loss": _num(r.loss),
-                                   "iterations": r.iterations, "T_wc": np.round(r.T_wc, 6).tolist()}
-                                  for (src, _), r in zip(hypotheses, results)]
+                                   "explained": round(e, 4), "iterations": r.iterations,
+                                   "T_wc": np.round(r.T_wc, 6).tolist()}
+                                  for (src, _), r, e in zip(hypotheses, results, explained)]
             diag["chosen"] = hypotheses[best][0]
             T_prior = hypotheses[best][1]
             if refining:
@@ -268,9 +291,20 @@ class OpenReLoc:
         diag["explanation"] = explain_pose(T, placed)
         return PoseEstimate(T, diag)
 
+    def _explained(self, results: list[Any], masks: list[ObjectMask], appearance: np.ndarray | None,
+                   K: np.ndarray) -> list[float]:
+        """Render-and-compare score of each refined pose against all query masks (:mod:`.consistency`);
+        without appearance (the oracle diagnostic) every mask-landmark pair weighs 1."""
+        labels = query_labels([mk.mask for mk in masks], self.config.consistency.stride)
+        weights = (np.ones((len(masks), len(self.ids))) if appearance is None
+                   else candidate_weights(appearance, self.config.consistency))
+        return [consistency(self.renderer.render(r.T_wc, K), labels, weights) if np.isfinite(r.loss) else 0.0
+                for r in results]
+
     def _objects(self, rgb: np.ndarray, masks: list[ObjectMask], diag: dict[str, Any],
-                 stage: Any) -> list[QueryObject] | Failure:
-        """Embed the query objects, keep the unique ones and describe them (paper section 3.2)."""
+                 stage: Any) -> tuple[list[QueryObject], np.ndarray] | Failure:
+        """Embed the query objects, keep the unique ones and describe them (paper section 3.2); also
+        every mask's visual similarity to every landmark."""
         cfg, m = self.config, self.map
         assert m is not None
         with stage("encode"):
@@ -289,7 +323,7 @@ class OpenReLoc:
                 phrases = self.describer.describe_many(rgb, [o.mask for o in objects])
                 for o, p, e in zip(objects, phrases, self.encoder.encode_texts(phrases)):
                     o.phrase, o.text = p, e
-        return objects
+        return objects, visual @ self.descriptors.T
 
     def _verify(self, matches: list[Match], objects: list[QueryObject], invalid: frozenset[int], K: np.ndarray,
                 diag: dict[str, Any]) -> tuple[list[Match], np.ndarray | None]:

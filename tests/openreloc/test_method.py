@@ -97,6 +97,20 @@ def test_verification_stage_reports_or_stays_out(map_dir: Path) -> None:
     assert "verify" not in off.diagnostics["timings"] and "verification" not in off.diagnostics
 
 
+def test_the_best_explained_hypothesis_wins(map_dir: Path) -> None:
+    q, _ = held_out_query()
+    on = localizer(map_dir, refinement={"max_iterations": 10}).localize(q)
+    hyps = on.diagnostics["hypotheses"]
+    assert "compare" in on.diagnostics["timings"] and len(hyps) > 1
+    best = max(h["explained"] for h in hyps if h["loss"] is not None)
+    assert best > 0 and next(h for h in hyps if h["source"] == on.diagnostics["chosen"])["explained"] == best
+    off = localizer(map_dir, refinement={"max_iterations": 10}, consistency={"enabled": False}).localize(q)
+    hyps = off.diagnostics["hypotheses"]
+    assert "compare" not in off.diagnostics["timings"]
+    lowest = min(h["loss"] for h in hyps if h["loss"] is not None)
+    assert next(h for h in hyps if h["source"] == off.diagnostics["chosen"])["loss"] == lowest
+
+
 def test_language_modality_uses_the_describer(map_dir: Path) -> None:
     q, _ = held_out_query()
     m = create_method("openreloc", refinement={"max_iterations": 5})

@@ -1,0 +1,104 @@
+"""Render-and-compare: how well a camera pose explains the *whole* query segmentation (beyond the paper).
+
+The refinement's loss measures how well the matched landmarks fit their own masks, so a wrong set of
+matches can fit a wrong pose about as well as the right set fits the right one. Every landmark of the
+map, walls and floors included, can be drawn at a pose, though, and a right pose reproduces the
+query's segmentation: each query mask is covered by one drawn landmark that also looks like it. The
+score is the optimal one-to-one assignment (``scipy.optimize.linear_sum_assignment``) of query masks to
+drawn landmarks by IoU on a coarse grid, a pair's IoU weighted down when the landmark is not among
+the object's visual candidates.
+
+The drawing is a z-buffered splat of each landmark's (subsampled) points into cells of ``stride``
+pixels. Hand-written in numpy because the map keeps points, not meshes (pyrender and open3d's
+raycasting need triangles), and because a few hundred cells per pose is all the comparison needs.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+
+@dataclass
+class ConsistencyConfig:
+    """Choice among refined hypotheses by render-and-compare (see the module docstring)."""
+
+    enabled: bool = True
+    """Beyond the paper: pick the refined pose that best explains all query masks (False = the lowest
+    2D ICP loss, as the paper has it for its single hypothesis)."""
+    stride: int = 8
+    """Pixels per cell of the label grid (8: an 80 x 60 grid at 640 x 480)."""
+    points_per_landmark: int = 400
+    """At most this many points of each landmark are drawn (a seeded subsample)."""
+    candidates: int = 5
+    """A landmark among an object's visual top-k counts fully; any other is weighted by ``off_candidate_weight``."""
+    off_candidate_weight: float = 0.2
+    """Weight of a mask-landmark overlap when the landmark does not look like the object."""
+    min_depth: float = 0.1
+    """Points nearer than this (metres) are not drawn."""
+
+
+class LabelRenderer:
+    """Draws the map's landmarks (rows of the landmark arrays) into a coarse label grid at any pose."""
+
+    def __init__(self, points: list[np.ndarray], width: int, height: int, cfg: ConsistencyConfig, seed: int = 0):
+        rng = np.random.default_rng(seed)
+        keep = [p if len(p) <= cfg.points_per_landmark else p[rng.choice(len(p), cfg.points_per_landmark, replace=False)]
+                for p in points]
+        self.points = np.concatenate([np.asarray(p, np.float64).reshape(-1, 3) for p in keep]) if keep else np.zeros((0, 3))
+        self.rows = np.concatenate([np.full(len(p), r) for r, p in enumerate(keep)]) if keep else np.zeros(0, int)
+        self.n_rows = len(points)
+        self.cfg = cfg
+        s = cfg.stride
+        self.grid = (height // s, width // s)
+
+    def render(self, T_wc: np.ndarray, K: np.ndarray) -> np.ndarray:
+        """(H/stride, W/stride) int grid: the nearest drawn landmark's row per cell, -1 where none is."""
+        h, w = self.grid
+        K = np.asarray(K, np.float64)
+        T_wc = np.asarray(T_wc, np.float64)
+        R, c = T_wc[:3, :3], T_wc[:3, 3]
+        X = (self.points - c) @ R  # world -> camera: R^T (p - c)
+        z = X[:, 2]
+        front = z > self.cfg.min_depth
+        zs = np.where(front, z, 1.0)
+        u = np.floor((K[0, 0] * X[:, 0] / zs + K[0, 2]) / self.cfg.stride).astype(np.int64)
+        v = np.floor((K[1, 1] * X[:, 1] / zs + K[1, 2]) / self.cfg.stride).astype(np.int64)
+        ok = front & (u >= 0) & (u < w) & (v >= 0) & (v < h)
+        cell, depth, rows = v[ok] * w + u[ok], z[ok], self.rows[ok]
+        order = np.argsort(-depth, kind="stable")  # far to near: the nearest point's write lands last
+        grid = np.full(h * w, -1, np.int64)
+        grid[cell[order]] = rows[order]
+        return grid.reshape(h, w)
+
+
+def query_labels(masks: list[np.ndarray], stride: int) -> np.ndarray:
+    """The query segmentation sampled at cell centres: (H/stride, W/stride) mask index, -1 where none."""
+    h, w = masks[0].shape
+    grid = np.full((h // stride, w // stride), -1, np.int64)
+    c = stride // 2
+    for k, m in enumerate(masks):
+        grid[np.asarray(m, bool)[c::stride, c::stride][: grid.shape[0], : grid.shape[1]]] = k
+    return grid
+
+
+def candidate_weights(similarity: np.ndarray, cfg: ConsistencyConfig) -> np.ndarray:
+    """(Q, N) weight of each mask-landmark pair from the (Q, N) visual similarities: 1 within each
+    object's top ``candidates``, ``off_candidate_weight`` elsewhere."""
+    rank = np.argsort(np.argsort(-similarity, axis=1, kind="stable"), axis=1, kind="stable")
+    return np.where(rank < cfg.candidates, 1.0, cfg.off_candidate_weight)
+
+
+def consistency(drawn: np.ndarray, labels: np.ndarray, weights: np.ndarray) -> float:
+    """Sum over the optimal one-to-one assignment of query masks to drawn landmarks of weight x IoU
+    (``drawn``, ``labels``: label grids; ``weights``: (Q, N))."""
+    nq, nl = weights.shape
+    both = (labels >= 0) & (drawn >= 0)
+    joint = np.bincount(labels[both] * nl + drawn[both], minlength=nq * nl).reshape(nq, nl)
+    area_q = np.bincount(labels[labels >= 0], minlength=nq)
+    area_l = np.bincount(drawn[drawn >= 0], minlength=nl)
+    score = weights * joint / np.maximum(area_q[:, None] + area_l[None, :] - joint, 1)
+    rows, cols = linear_sum_assignment(score, maximize=True)
+    return float(score[rows, cols].sum())

@@ -34,6 +34,7 @@ ABLATION_ROWS: tuple[Row, ...] = (
     Row("visibility_retrieval", "#5 w/o DIoU-based Retrieval", {"retrieval": "visibility"}),
     Row("no_filtering", "#6 w/o Invalid Object Filtering", {"no_filtering": True}),
     Row("no_verification", "#7 w/o Geometric Verification (beyond the paper)", {"verification": {"enabled": False}}),
+    Row("no_render_compare", "#8 w/o Render-and-Compare Choice (beyond the paper)", {"consistency": {"enabled": False}}),
 )
 FULL_ROW = Row("full", "Ours Full")
 

@@ -50,7 +50,7 @@ from openreloc_bench.openreloc.consistency import (
 from openreloc_bench.openreloc.descriptors import pad_box
 from openreloc_bench.openreloc.explain import PlacedObject, explain_pose
 from openreloc_bench.openreloc.map import ObjectMap
-from openreloc_bench.openreloc.refine import RefineConfig, RefineTarget, refine_poses
+from openreloc_bench.openreloc.refine import RefineConfig, RefineResult, RefineTarget, refine_poses
 from openreloc_bench.openreloc.retrieval import CoarseConfig, pnp_prior, retrieve_reference
 from openreloc_bench.openreloc.verify import ObjectEvidence, VerifyConfig, extreme_points, verify_matches
 from openreloc_bench.vision.base import (
@@ -293,7 +293,7 @@ class OpenReLoc:
         diag["explanation"] = explain_pose(T, placed)
         return PoseEstimate(T, diag)
 
-    def _explained(self, results: list[Any], masks: list[ObjectMask], appearance: np.ndarray | None,
+    def _explained(self, results: list[RefineResult], masks: list[ObjectMask], appearance: np.ndarray | None,
                    K: np.ndarray) -> list[float]:
         """Render-and-compare score of each refined pose against all query masks (:mod:`.consistency`);
         without appearance (the oracle diagnostic) every mask-landmark pair weighs 1."""

@@ -101,8 +101,8 @@ class OpenReLocConfig:
     refinement: RefineConfig = field(default_factory=RefineConfig)
     """Dual-path 2D ICP settings."""
     consistency: ConsistencyConfig = field(default_factory=ConsistencyConfig)
-    """Beyond the paper: the refined hypothesis that best explains every query mask wins, instead of
-    the one with the lowest ICP loss over the (possibly wrong) matches."""
+    """Beyond the paper: the refined hypotheses that best explain every query mask compete, and the
+    lowest ICP loss among them wins, instead of the lowest loss over all, whose matches may be wrong."""
     mapping: MappingConfig = field(default_factory=MappingConfig)
     """Map building settings (used by ``build_map``)."""
     no_refine: bool = False
@@ -264,9 +264,7 @@ class OpenReLoc:
             if cfg.consistency.enabled:
                 with stage("compare"):
                     explained = self._explained(results, masks, appearance, K)
-            order = sorted(range(len(results)),
-                           key=lambda i: (not np.isfinite(results[i].loss), -explained[i], results[i].loss, i))
-            best = order[0]
+            best = choose_hypothesis([r.loss for r in results], explained, cfg.consistency.tie_share)
             res = results[best]
             diag["hypotheses"] = [{"source": src, "initial_loss": _num(r.initial_loss), "loss": _num(r.loss),
                                    "explained": round(e, 4), "iterations": r.iterations,
@@ -389,6 +387,17 @@ class OpenReLoc:
         if np.linalg.norm(target - eye) < 1e-3:
             target = eye + np.array([1.0, 0.0, 0.0])
         return geometry.look_at(eye, target)
+
+
+def choose_hypothesis(losses: list[float], explained: list[float], tie_share: float) -> int:
+    """Index of the refined hypothesis to keep: among those explaining at least ``1 - tie_share`` of the
+    best render-and-compare score, the lowest ICP loss (the coarse label grid separates wrong solutions
+    but cannot rank poses a few decimetres apart; the loss can). Non-finite losses never win."""
+    finite = [i for i, v in enumerate(losses) if np.isfinite(v)]
+    if not finite:
+        return 0
+    top = max(explained[i] for i in finite)
+    return min((i for i in finite if explained[i] >= (1.0 - tie_share) * top), key=lambda i: (losses[i], i))
 
 
 def verification_evidence(objects: list[QueryObject], matched: dict[int, Match], sims: np.ndarray, ids: list[int],

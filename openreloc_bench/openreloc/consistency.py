@@ -26,8 +26,8 @@ class ConsistencyConfig:
     """Choice among refined hypotheses by render-and-compare (see the module docstring)."""
 
     enabled: bool = True
-    """Beyond the paper: pick the refined pose that best explains all query masks (False = the lowest
-    2D ICP loss, as the paper has it for its single hypothesis)."""
+    """Beyond the paper: only the refined poses that best explain all query masks compete on ICP loss
+    (False = the lowest 2D ICP loss of all, as the paper has it for its single hypothesis)."""
     stride: int = 8
     """Pixels per cell of the label grid (8: an 80 x 60 grid at 640 x 480)."""
     points_per_landmark: int = 400

@@ -54,7 +54,6 @@ class LabelRenderer:
                 for p in points]
         self.points = np.concatenate([np.asarray(p, np.float64).reshape(-1, 3) for p in keep]) if keep else np.zeros((0, 3))
         self.rows = np.concatenate([np.full(len(p), r) for r, p in enumerate(keep)]) if keep else np.zeros(0, int)
-        self.n_rows = len(points)
         self.cfg = cfg
         s = cfg.stride
         self.grid = (height // s, width // s)

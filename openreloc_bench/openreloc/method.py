@@ -404,9 +404,10 @@ def verification_evidence(objects: list[QueryObject], matched: dict[int, Match],
                           invalid: frozenset[int], n_candidates: int) -> list[ObjectEvidence]:
     """Each query object's candidate landmark rows for the verification (``matched``: query index -> its
     association match): its association candidates, then its visual ranking (``sims``: object x landmark
-    row), without invalid landmarks. Objects the association left out get none: it drops an object whose best landmark is a filtered wall or floor
-    (the object is one), and the verification must not give it a look-alike instead (measured on the
-    smoke scene: walls re-matched to a fan and a window, 3 of 8 queries lost)."""
+    row), without invalid landmarks. Objects the association left out get none: it drops an object
+    whose best landmark is a filtered wall or floor (the object is one), and the verification must not
+    give it a look-alike instead (measured on the smoke scene: walls re-matched to a fan and a window,
+    3 of 8 queries lost)."""
     row_of = {lid: r for r, lid in enumerate(ids)}
     out = []
     for q, o in enumerate(objects):

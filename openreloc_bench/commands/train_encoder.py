@@ -43,6 +43,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--input-size", type=int, default=32, help="crop side fed to the image tower")
     parser.add_argument("--workers", type=int, default=2, help="parallel scene generation processes")
     parser.add_argument("--instance-weight", type=float, default=0.3, help="two-view image loss weight")
+    parser.add_argument("--scenes-per-batch", type=int, default=0,
+                        help="anchors of a batch come from this many scenes (0: all scenes at random)")
 
 
 def _scene_dirs(root: Path) -> list[Path]:
@@ -136,7 +138,7 @@ def run(args: argparse.Namespace) -> int:
     text = TextTower(MINILM_PACKAGE)
     cfg = TrainConfig(
         seed=args.seed, epochs=args.epochs, threads=args.threads, instance_weight=args.instance_weight,
-        pairs_per_batch=args.pairs_per_batch,
+        pairs_per_batch=args.pairs_per_batch, scenes_per_batch=args.scenes_per_batch,
     )
     tower_cfg = TowerConfig(input_size=args.input_size)
     tower, info = train_tower(train, text, cfg, tower_cfg, log=lambda m: print(m, flush=True))

@@ -48,6 +48,11 @@ class TrainConfig:
     """Initial softmax temperature (learned, as in CLIP)."""
     instance_weight: float = 0.3
     """Weight of the two-view image-image loss (0 = text alignment only)."""
+    scenes_per_batch: int = 0
+    """Anchors of a batch come from this many scenes (0: from all scenes at random). Relocalization
+    tells apart the objects of *one* room; with anchors from many scenes the two-view loss's negatives
+    are mostly other rooms' objects, which lighting and style already separate. Grouping by scene
+    makes them the look-alikes that association confuses."""
     shift_px: int = 6
     """Random translation of crops, in pixels of the 64-px input."""
     brightness: float = 0.2
@@ -135,6 +140,7 @@ def train_tower(
     n = len(crops)
     half = min(cfg.pairs_per_batch, n)
     steps_per_epoch = max(1, n // half)
+    scene_of = np.unique(crops.scene, return_inverse=True)[1]
     total = steps_per_epoch * cfg.epochs
     warm = max(1, int(cfg.warmup_frac * total))
     sched = torch.optim.lr_scheduler.LambdaLR(
@@ -144,10 +150,8 @@ def train_tower(
     tower.train()
     bar = tqdm(total=total, desc="train-encoder", mininterval=5)
     for epoch in range(cfg.epochs):
-        perm = rng.permutation(n)
         losses = []
-        for step in range(steps_per_epoch):
-            anchor = perm[step * half : (step + 1) * half]
+        for anchor in epoch_batches(scene_of, half, cfg.scenes_per_batch, rng)[:steps_per_epoch]:
             partner = np.array([_other_view(groups[keys[a]], a, rng) for a in anchor])
             idx = np.concatenate([anchor, partner])
             cap = np.array([per_crop[i][rng.integers(len(per_crop[i]))] for i in idx])
@@ -174,6 +178,22 @@ def train_tower(
         log(f"epoch {epoch + 1}/{cfg.epochs} loss {history[-1]['loss']:.3f} temperature {history[-1]['temperature']:.4f}")
     bar.close()
     return tower.eval(), {"history": history, "captions": len(captions), "train_seconds": round(time.time() - t0, 1)}
+
+
+def epoch_batches(scene_of: np.ndarray, size: int, scenes_per_batch: int, rng: np.random.Generator) -> list[np.ndarray]:
+    """One epoch's anchor batches of ``size`` crop indices, each crop used at most once: random over
+    all crops, or, with ``scenes_per_batch`` k > 0, k runs of ``size // k`` crops of one scene each (a
+    run may straddle two scenes where one scene's crops end)."""
+    if scenes_per_batch <= 0:
+        seq = rng.permutation(len(scene_of))
+        run, k = size, 1
+    else:
+        seq = np.concatenate([rng.permutation(np.flatnonzero(scene_of == sc)) for sc in rng.permutation(scene_of.max() + 1)])
+        run = max(1, size // scenes_per_batch)
+        k = max(1, size // run)
+    runs = [seq[i : i + run] for i in range(0, len(seq) - run + 1, run)]
+    order = rng.permutation(len(runs)) if scenes_per_batch > 0 else np.arange(len(runs))
+    return [np.concatenate([runs[j] for j in order[i : i + k]]) for i in range(0, len(order) - k + 1, k)] or [seq]
 
 
 def _key_ids(keys: list[str]) -> np.ndarray:

@@ -5,7 +5,7 @@ import pytest
 
 from openreloc_bench.vision import vocabulary as voc
 from openreloc_bench.vision.crops import CropSet
-from openreloc_bench.vision.training import _average_precision, _instance_recall, caption_table
+from openreloc_bench.vision.training import _average_precision, _instance_recall, caption_table, epoch_batches
 
 
 def _crops(categories: list[str], colours: list[str], descriptions: list[str] | None = None) -> CropSet:
@@ -61,3 +61,24 @@ def test_describer_vocabulary_covers_generator_categories() -> None:
 
     missing = sorted(c for c in CATEGORIES if voc.noun(c) not in voc.OBJECT_NOUNS)
     assert not missing, missing
+
+
+@pytest.mark.parametrize("scenes_per_batch", [0, 1, 4])
+def test_epoch_batches_use_each_crop_once_and_group_scenes(scenes_per_batch: int) -> None:
+    rng = np.random.default_rng(0)
+    scene_of = np.repeat(np.arange(10), 100)  # 10 scenes of 100 crops
+    batches = epoch_batches(scene_of, 32, scenes_per_batch, rng)
+    used = np.concatenate(batches)
+    assert all(len(b) == 32 for b in batches) and len(batches) == len(scene_of) // 32
+    assert len(np.unique(used)) == len(used)
+    if scenes_per_batch:
+        # k runs of one scene each; a run may straddle a scene boundary, adding one scene at most
+        assert max(len(np.unique(scene_of[b])) for b in batches) <= 2 * scenes_per_batch
+        assert np.mean([len(np.unique(scene_of[b])) for b in batches]) < 1.5 * scenes_per_batch
+    else:
+        assert np.mean([len(np.unique(scene_of[b])) for b in batches]) > 8
+
+
+def test_epoch_batches_never_return_nothing() -> None:
+    batches = epoch_batches(np.zeros(5, int), 32, 4, np.random.default_rng(0))
+    assert len(batches) == 1 and sorted(batches[0]) == list(range(5))

@@ -148,6 +148,17 @@ def test_bad_inputs_are_failures_with_reasons(map_dir: Path) -> None:
     assert isinstance(r, Failure) and "reference frame" in r.reason
 
 
+@pytest.mark.parametrize("frac", [0.002, 0.1])  # 25 px: all three objects; 1229 px: one
+def test_the_smallest_object_is_a_share_of_the_image(map_dir: Path, frac: float) -> None:
+    m = localizer(map_dir, min_mask_frac=frac)
+    q, _ = held_out_query()
+    areas = np.bincount(q.instance.ravel())
+    assert m.min_mask_area == int(np.ceil(frac * HW[0] * HW[1]))
+    kept = int(((areas >= m.min_mask_area) & (np.arange(len(areas)) > 0)).sum())
+    r = m.localize(q)
+    assert r.diagnostics["detected"] == kept
+
+
 def test_unknown_config_key_is_a_config_error() -> None:
     with pytest.raises(ConfigError, match="no_such_switch"):
         create_method("openreloc", no_such_switch=True)

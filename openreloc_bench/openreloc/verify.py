@@ -194,9 +194,9 @@ class _CandidateTable:
 
 def _sample_poses(table: _CandidateTable, K: np.ndarray, samples: int,
                   rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-    """P3P poses, R_cw (H, 3, 3) and t_cw (H, 3), from random triples: objects uniform, candidates with probability
-    halving per rank (the association's choice is drawn about half the time). The draws are
-    vectorised; only the P3P solves loop (per-sample ``rng.choice`` was half of this stage's time)."""
+    """P3P poses, R_cw (H, 3, 3) and t_cw (H, 3), from random triples: objects uniform, candidates
+    with probability halving per rank (the association's choice is drawn about half the time). The
+    draws are vectorised; only the P3P solves loop (per-sample ``rng.choice`` was half of this stage)."""
     usable = table.usable
     k = max(len(table.by_object[q]) for q in usable)
     slots = np.full((len(usable), k), -1)  # per usable object: its flat candidate indices, padded
@@ -206,8 +206,9 @@ def _sample_poses(table: _CandidateTable, K: np.ndarray, samples: int,
         p = 0.5 ** table.rank[idx]
         slots[i, : len(idx)] = idx
         cdf[i, : len(idx)] = np.cumsum(p / p.sum())
+        cdf[i, len(idx) - 1] = 1.0  # exactly, so that rounding can never draw a padded slot
     objs = np.argsort(rng.random((samples, len(usable))), axis=1)[:, :3]  # three distinct objects
-    pick = (rng.random((samples, 3, 1)) > cdf[objs]).sum(-1).clip(max=k - 1)
+    pick = (rng.random((samples, 3, 1)) >= cdf[objs]).sum(-1)
     flat = slots[objs, pick]
     rows = table.rows[flat]
     X = table.X[flat]

@@ -13,7 +13,9 @@ Speed: the forward nearest mask pixel of every image pixel is precomputed once p
 distance transform that also returns the nearest pixel (``cv2.distanceTransformWithLabels``), so a
 step only gathers coordinates (ICP-style: the correspondence is fixed within a step and the residual
 ``p - nearest(p)`` is differentiable in ``p``). The backward path is one batched ``torch.cdist``.
-All objects are padded into one batch so a step is a handful of tensor ops.
+All objects are padded into one batch so a step is a handful of tensor ops, and the gradient is
+written out by the chain rule (``_Problem.gradient``), since autograd's bookkeeping on such small
+ops cost as much as the arithmetic.
 
 Parametrisation: the pose is ``T_wc = T_init @ [R(q) | t]``, with ``q`` (w, x, y, z, normalised in
 the forward pass) and ``t`` expressed in the *initial camera frame*. The rotation then turns the
@@ -217,6 +219,32 @@ def resize_mask(mask: np.ndarray, s: float) -> np.ndarray:
     return cv2.resize(np.asarray(mask, np.float32), size, interpolation=cv2.INTER_AREA) >= 0.5
 
 
+@dataclass
+class _Terms:
+    """What one loss evaluation keeps for its gradient (shapes: B hypotheses, O objects, P points, M pixels)."""
+
+    R: torch.Tensor
+    """(B, 3, 3) rotations of the local poses."""
+    pc: torch.Tensor
+    """(B, O, P, 3) points in the current camera frame."""
+    front: torch.Tensor
+    """(B, O, P) points in front of the camera."""
+    use: torch.Tensor
+    """(B, O, P) points that count in the forward path."""
+    resid: torch.Tensor
+    """(B, O, P, 2) forward residuals: projection - nearest mask pixel (zero inside the mask)."""
+    fwd_sq: torch.Tensor
+    """(B, O, P) squared forward residuals."""
+    n_use: torch.Tensor
+    """(B, O) forward points counted (at least 1)."""
+    bwd_diff: torch.Tensor
+    """(B * O, M, 2) backward residuals: nearest projected point - mask pixel."""
+    bwd_sq: torch.Tensor
+    """(B, O, M) squared backward residuals."""
+    delta: float
+    """Huber threshold in working-resolution pixels."""
+
+
 class _Problem:
     """Padded, batched tensors of all objects and hypotheses; evaluates per-object losses at local poses.
 
@@ -284,7 +312,12 @@ class _Problem:
     def losses(self, q: torch.Tensor, t: torch.Tensor, delta: float, refresh: bool = True) -> torch.Tensor:
         """(B, n_obj) dual-path loss of each object at the local poses (q (B, 4), t (B, 3)), in
         working-resolution squared pixels; ``delta`` in full-resolution pixels. ``refresh=False``
-        keeps the backward path's previous nearest-point correspondences."""
+        keeps the backward path's previous nearest-point correspondences. Differentiable in (q, t)."""
+        return self.evaluate(q, t, delta, refresh)[0]
+
+    def evaluate(self, q: torch.Tensor, t: torch.Tensor, delta: float,
+                 refresh: bool = True) -> tuple[torch.Tensor, _Terms]:
+        """:meth:`losses`, plus the intermediate tensors :meth:`gradient` needs."""
         cfg, K = self.cfg, self.K
         delta = delta * self.scale
         R = _quat_to_rotmat(q)  # (B, 3, 3)
@@ -302,22 +335,76 @@ class _Problem:
         flat = (vi.clamp(0, self.H - 1) * self.W + ui.clamp(0, self.W - 1)) + self.offset
         use = in_img & self.counted[flat]
         resid = (uv - self.nearest[flat]) * self.outside[flat].unsqueeze(-1)
-        fwd_terms = huber_sq((resid**2).sum(-1), delta) * use
-        fwd = fwd_terms.sum(-1) / use.sum(-1).clamp_min(1)
+        fwd_sq = (resid**2).sum(-1)
+        n_use = use.sum(-1).clamp_min(1)
+        fwd = (huber_sq(fwd_sq, delta) * use).sum(-1) / n_use
         # backward: mask pixels -> nearest projected point (points behind the camera are absent).
         # The correspondence is found without gradient, then the distance to it is differentiated:
         # O(M) backward instead of cdist's O(M x N).
         uv_b = torch.where(front.unsqueeze(-1), uv, torch.full_like(uv, _BIG)).reshape(self.n_hyp * self.n_obj, -1, 2)
         if refresh or self.nn_idx is None:
-            with torch.no_grad():
-                self.nn_idx = torch.cdist(self.pix, uv_b).argmin(dim=2).unsqueeze(-1).expand(-1, -1, 2)
-        nn_uv = torch.gather(uv_b, 1, self.nn_idx)
-        d2 = ((self.pix - nn_uv) ** 2).sum(-1).reshape(self.n_hyp, self.n_obj, -1)
-        bwd = (huber_sq(d2, delta) * self.pix_valid).sum(-1) / self.n_pix
+            with torch.no_grad():  # numpy's argmin is ~1.5x faster than torch's on these (B * n_obj, M, N) blocks
+                nearest = torch.from_numpy(torch.cdist(self.pix, uv_b.detach()).numpy().argmin(axis=2))
+                self.nn_idx = nearest.unsqueeze(-1).expand(-1, -1, 2)
+        bwd_diff = torch.gather(uv_b, 1, self.nn_idx) - self.pix  # nearest projected point - mask pixel
+        bwd_sq = (bwd_diff**2).sum(-1).reshape(self.n_hyp, self.n_obj, -1)
+        bwd = (huber_sq(bwd_sq, delta) * self.pix_valid).sum(-1) / self.n_pix
         # an object with no point in front of the camera cannot be scored: worst possible loss
         no_front = front.sum(-1) == 0
         worst = torch.full_like(fwd, 4.0 * delta * max(self.H, self.W))
-        return torch.where(no_front, worst, fwd + bwd)
+        terms = _Terms(R, pc, front, use, resid, fwd_sq, n_use, bwd_diff, bwd_sq, delta)
+        return torch.where(no_front, worst, fwd + bwd), terms
+
+    def gradient(self, q: torch.Tensor, t: torch.Tensor, terms: _Terms,
+                 coef: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """d/d(q, t) of sum_(b, o) coef[b, o] * loss[b, o], by the chain rule through :meth:`evaluate`.
+
+        Written out rather than left to autograd: a step is ~40 small tensor ops on a few thousand
+        points, where autograd's graph bookkeeping cost as much as the arithmetic (20% of a query).
+        ``tests/openreloc/test_refine.py`` checks it against autograd.
+        """
+        R, pc, front, delta = terms.R, terms.pc, terms.front, terms.delta
+        B, n_obj, n_pts = front.shape
+        # d loss / d uv of every point: forward residuals, then backward ones scattered onto their nearest point
+        c_fwd = (coef / terms.n_use).unsqueeze(-1) * terms.use * _huber_slope(terms.fwd_sq, delta)
+        g_uv = 2.0 * c_fwd.unsqueeze(-1) * terms.resid
+        c_bwd = (coef / self.n_pix).unsqueeze(-1) * self.pix_valid * _huber_slope(terms.bwd_sq, delta)
+        g_nn = (2.0 * c_bwd).reshape(B * n_obj, -1, 1) * terms.bwd_diff
+        g_uv = g_uv.reshape(B * n_obj, n_pts, 2).scatter_add(1, self.nn_idx, g_nn).reshape(B, n_obj, n_pts, 2)
+        g_uv = g_uv * front.unsqueeze(-1)  # absent points (behind the camera) carry no gradient
+        # projection u = fx x / z + cx, v = fy y / z + cy
+        K = self.K
+        iz = 1.0 / torch.where(front, pc[..., 2], torch.ones_like(pc[..., 2]))
+        gx, gy = g_uv[..., 0] * K[0, 0] * iz, g_uv[..., 1] * K[1, 1] * iz
+        g_pc = torch.stack([gx, gy, -(gx * pc[..., 0] + gy * pc[..., 1]) * iz], dim=-1).reshape(B, -1, 3)
+        # pc = (p - t) R  ->  dL/dR = (p - t)^T g_pc,  dL/dt = -R sum(g_pc)
+        g_R = torch.bmm((self.pts.reshape(B, -1, 3) - t[:, None, :]).transpose(1, 2), g_pc)
+        g_t = -torch.bmm(R, g_pc.sum(1).unsqueeze(-1)).squeeze(-1)
+        return _quat_gradient(q, g_R), g_t
+
+
+def _huber_slope(sq_dist: torch.Tensor, delta: float) -> torch.Tensor:
+    """d huber_sq / d sq_dist: 1 in the quadratic zone, delta / distance beyond it."""
+    return torch.where(sq_dist <= delta * delta, torch.ones_like(sq_dist), delta / torch.sqrt(sq_dist.clamp_min(delta * delta)))
+
+
+def _quat_gradient(q: torch.Tensor, g_R: torch.Tensor) -> torch.Tensor:
+    """(B, 4) gradient w.r.t. the unnormalised quaternion ``q`` given (B, 3, 3) d loss / d R of
+    :func:`_quat_to_rotmat` (its partial derivatives, then the normalisation's projection)."""
+    norm = q.norm(dim=-1, keepdim=True)
+    w, x, y, z = (q / norm).unbind(-1)
+    G = g_R
+    g = 2.0 * torch.stack([
+        -z * G[:, 0, 1] + y * G[:, 0, 2] + z * G[:, 1, 0] - x * G[:, 1, 2] - y * G[:, 2, 0] + x * G[:, 2, 1],
+        y * G[:, 0, 1] + z * G[:, 0, 2] + y * G[:, 1, 0] - 2 * x * G[:, 1, 1] - w * G[:, 1, 2] + z * G[:, 2, 0]
+        + w * G[:, 2, 1] - 2 * x * G[:, 2, 2],
+        -2 * y * G[:, 0, 0] + x * G[:, 0, 1] + w * G[:, 0, 2] + x * G[:, 1, 0] + z * G[:, 1, 2] - w * G[:, 2, 0]
+        + z * G[:, 2, 1] - 2 * y * G[:, 2, 2],
+        -2 * z * G[:, 0, 0] - w * G[:, 0, 1] + x * G[:, 0, 2] + w * G[:, 1, 0] - 2 * z * G[:, 1, 1] + y * G[:, 1, 2]
+        + x * G[:, 2, 0] + y * G[:, 2, 1],
+    ], dim=-1)
+    qn = q / norm
+    return (g - qn * (qn * g).sum(-1, keepdim=True)) / norm
 
 
 def _weights(obj_losses: torch.Tensor, cfg: RefineConfig, active: bool, unit: float) -> torch.Tensor:
@@ -397,8 +484,8 @@ def _optimise(T_inits: list[np.ndarray], K: np.ndarray, targets: list[RefineTarg
               occluders: np.ndarray | None) -> list[RefineResult]:
     problem = _Problem(T_inits, K, targets, cfg, seed, occluders)
     B, unit = len(T_inits), problem.unit
-    q = torch.tensor([[1.0, 0.0, 0.0, 0.0]] * B, requires_grad=True)
-    t = torch.zeros(B, 3, requires_grad=True)
+    q = torch.tensor([[1.0, 0.0, 0.0, 0.0]] * B)
+    t = torch.zeros(B, 3)
     opt = torch.optim.Adam([{"params": [q], "lr": cfg.lr_rotation}, {"params": [t], "lr": cfg.lr_translation}])
     sched = torch.optim.lr_scheduler.ReduceLROnPlateau(
         opt, factor=0.5, patience=cfg.plateau_patience, threshold=cfg.plateau_threshold
@@ -412,11 +499,10 @@ def _optimise(T_inits: list[np.ndarray], K: np.ndarray, targets: list[RefineTarg
     it = 0
     for it in range(1, cfg.max_iterations + 1):
         delta = _delta_at(cfg, it)
-        opt.zero_grad()
-        obj = problem.losses(q, t, delta, refresh=(it - 1) % max(1, cfg.correspondence_every) == 0)
+        obj, terms = problem.evaluate(q, t, delta, refresh=(it - 1) % max(1, cfg.correspondence_every) == 0)
         w = _weights(obj, cfg, it > cfg.outlier_warmup, unit)
-        loss = (obj * w).sum(-1) / w.sum(-1).clamp_min(1.0)  # (B,)
-        value = loss.detach()
+        coef = w / w.sum(-1, keepdim=True).clamp_min(1.0)
+        value = (obj * coef).sum(-1)  # (B,)
         if it == 1:
             initial = value.clone()
         finite = torch.isfinite(value)
@@ -427,14 +513,13 @@ def _optimise(T_inits: list[np.ndarray], K: np.ndarray, targets: list[RefineTarg
         annealed = it > cfg.anneal_steps or cfg.huber_delta_start <= cfg.huber_delta
         improved = alive & (value < best_loss) if annealed else alive  # best only counts at the final delta
         best_loss = torch.where(improved, value, best_loss)
-        best_q[improved], best_t[improved] = q.detach()[improved], t.detach()[improved]
-        torch.where(alive, loss, torch.zeros_like(loss)).sum().backward()
+        best_q[improved], best_t[improved] = q[improved], t[improved]
+        q.grad, t.grad = problem.gradient(q, t, terms, torch.where(alive.unsqueeze(-1), coef, 0.0))
         bad = alive & ~(torch.isfinite(q.grad).all(-1) & torch.isfinite(t.grad).all(-1))
         for b in torch.nonzero(bad).flatten().tolist():
             alive[b], why[b] = False, "non-finite gradient"
-        with torch.no_grad():
-            q.grad[~alive] = 0.0
-            t.grad[~alive] = 0.0
+        q.grad[~alive] = 0.0
+        t.grad[~alive] = 0.0
         opt.step()
         if annealed:
             sched.step(float(value[alive].sum()) if alive.any() else 0.0)

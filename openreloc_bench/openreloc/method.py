@@ -173,6 +173,7 @@ class OpenReLoc:
             # every describer embeds its phrase choice (or its fallback) in the map's encoder space
             # the describer re-encodes the same vocabulary phrases for every object: memoise them
             self.describer = create_describer(cfg.describer, encoder=TextCache(self.encoder), **cfg.describer_options)
+            self.describer.prepare()
         self.min_mask_area = max(1, math.ceil(cfg.min_mask_frac * m.width * m.height))
         self.gt_segmenter = create_segmenter("gt", min_area=self.min_mask_area)
         self.segmenter = create_segmenter(cfg.segmenter, **cfg.segmenter_options)

@@ -80,6 +80,10 @@ class Describer(abc.ABC):
         """One phrase per mask of the same image; backends override it to batch their model calls."""
         return [self.describe(rgb, m) for m in masks]
 
+    def prepare(self) -> None:
+        """Compute what every query needs (vocabulary embeddings...) now, when a map loads, so that the
+        first queries do not pay for it in their latency. Default: nothing to prepare."""
+
 
 _ENCODERS: dict[str, Callable[..., ImageTextEncoder]] = {}
 _DESCRIBERS: dict[str, Callable[..., Describer]] = {}

@@ -66,6 +66,21 @@ class OfflineDescriber(Describer):
             self._tables[key] = self.encoder.encode_texts(phrases)
         return self._tables[key]
 
+    def _nouns(self) -> np.ndarray:
+        return self._table("nouns", [voc.with_article(voc.ZERO_SHOT_TEMPLATE.format(noun=n)) for n in self.nouns])
+
+    def _colours(self) -> np.ndarray:
+        return self._table("colours", [voc.with_article(f"a {c} object") for c in voc.COLOURS])
+
+    def _materials(self, colour: str) -> np.ndarray:
+        return self._table(f"materials/{colour}", [voc.with_article(f"a {colour} {mt} object") for mt in voc.MATERIALS])
+
+    def prepare(self) -> None:
+        self._nouns()
+        self._colours()
+        for colour in voc.COLOURS:
+            self._materials(colour)
+
     def describe(self, rgb: np.ndarray, mask: np.ndarray) -> str:
         return self.describe_many(rgb, [mask])[0]
 
@@ -79,14 +94,13 @@ class OfflineDescriber(Describer):
         obj, ctx = emb[0::2], emb[1::2]
         q = obj + self.context_weight * ctx
         q /= np.linalg.norm(q, axis=1, keepdims=True).clip(1e-12)
-        nouns = self._table("nouns", [voc.with_article(voc.ZERO_SHOT_TEMPLATE.format(noun=n)) for n in self.nouns])
-        colours = self._table("colours", [voc.with_article(f"a {c} object") for c in voc.COLOURS])
+        nouns, colours = self._nouns(), self._colours()
         out = []
         for o, noun_k in zip(obj, np.argmax(q @ nouns.T, axis=1)):
             noun = self.nouns[int(noun_k)]
             cs = colours @ o
             colour = voc.COLOURS[int(np.argmax(cs))]
-            ms = self._table(f"materials/{colour}", [voc.with_article(f"a {colour} {mt} object") for mt in voc.MATERIALS]) @ o
+            ms = self._materials(colour) @ o
             best = int(np.argmax(ms))
             words = f"{colour} {voc.MATERIALS[best]}" if ms[best] > cs.max() + self.material_margin else colour
             out.append(voc.with_article(f"a {words} {noun}"))

@@ -54,6 +54,33 @@ class _Spy:
         return self.enc.encode_texts(texts)
 
 
+class _TextCounter(_Spy):
+    """Also counts the text phrases it is asked to encode."""
+
+    def __init__(self, enc) -> None:
+        super().__init__(enc)
+        self.texts = 0
+
+    def encode_texts(self, texts):
+        self.texts += len(texts)
+        return self.enc.encode_texts(texts)
+
+
+def test_prepared_offline_describer_encodes_no_text_per_query(clip_encoder) -> None:
+    """The vocabulary tables are built when a map loads (``prepare``), not in the first queries."""
+    img, mask = _image()
+    counter = _TextCounter(clip_encoder)
+    d = create_describer("offline", encoder=counter)
+    d.prepare()
+    prepared = counter.texts
+    assert prepared >= len(voc.OBJECT_NOUNS) + len(voc.COLOURS) * (1 + len(voc.MATERIALS))
+    other = img.copy()
+    other[20:40, 10:30] = (20, 20, 200)
+    d.describe_many(img, [mask])
+    d.describe_many(other, [mask, ~mask])
+    assert counter.texts == prepared
+
+
 def test_offline_describer_sees_object_and_context(clip_encoder) -> None:
     """Like the paper's prompt: the object crop plus a wider context crop; colour comes from the object."""
     img, mask = _image()

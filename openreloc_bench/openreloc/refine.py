@@ -184,17 +184,29 @@ def backward_pixels(mask: np.ndarray, which: str) -> np.ndarray:
     return contour if contour.any() else mask
 
 
+def _quaternion_forms() -> torch.Tensor:
+    """(3, 3, 4, 4) symmetric M with R_ij = q^T M_ij q for a unit quaternion q = (w, x, y, z): the
+    homogeneous form of the rotation matrix (e.g. R_00 = w^2 + x^2 - y^2 - z^2, R_01 = 2 (xy - wz))."""
+    M = torch.zeros(3, 3, 4, 4)
+    M[0, 0].diagonal().copy_(torch.tensor([1.0, 1.0, -1.0, -1.0]))
+    M[1, 1].diagonal().copy_(torch.tensor([1.0, -1.0, 1.0, -1.0]))
+    M[2, 2].diagonal().copy_(torch.tensor([1.0, -1.0, -1.0, 1.0]))
+    w, x, y, z = range(4)
+    for (i, j), (a, b), (c, d), sign in [((0, 1), (x, y), (w, z), -1.0), ((1, 0), (x, y), (w, z), 1.0),
+                                         ((0, 2), (x, z), (w, y), 1.0), ((2, 0), (x, z), (w, y), -1.0),
+                                         ((1, 2), (y, z), (w, x), -1.0), ((2, 1), (y, z), (w, x), 1.0)]:
+        M[i, j, a, b] = M[i, j, b, a] = 1.0
+        M[i, j, c, d] = M[i, j, d, c] = sign
+    return M
+
+
+_QUAT_FORMS = _quaternion_forms()
+
+
 def _quat_to_rotmat(q: torch.Tensor) -> torch.Tensor:
     """(B, 4) quaternions (w, x, y, z; normalised here) -> (B, 3, 3) rotation matrices."""
-    w, x, y, z = (q / q.norm(dim=-1, keepdim=True)).unbind(-1)
-    return torch.stack(
-        [
-            torch.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-            torch.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-            torch.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
-        ],
-        -2,
-    )
+    qn = q / q.norm(dim=-1, keepdim=True)
+    return torch.einsum("bk,ijkl,bl->bij", qn, _QUAT_FORMS, qn)
 
 
 def working_scale(height: int, width: int, max_side: int) -> float:
@@ -390,20 +402,10 @@ def _huber_slope(sq_dist: torch.Tensor, delta: float) -> torch.Tensor:
 
 def _quat_gradient(q: torch.Tensor, g_R: torch.Tensor) -> torch.Tensor:
     """(B, 4) gradient w.r.t. the unnormalised quaternion ``q`` given (B, 3, 3) d loss / d R of
-    :func:`_quat_to_rotmat` (its partial derivatives, then the normalisation's projection)."""
+    :func:`_quat_to_rotmat`: d R_ij / d q_unit = 2 M_ij q_unit, then the normalisation's projection."""
     norm = q.norm(dim=-1, keepdim=True)
-    w, x, y, z = (q / norm).unbind(-1)
-    G = g_R
-    g = 2.0 * torch.stack([
-        -z * G[:, 0, 1] + y * G[:, 0, 2] + z * G[:, 1, 0] - x * G[:, 1, 2] - y * G[:, 2, 0] + x * G[:, 2, 1],
-        y * G[:, 0, 1] + z * G[:, 0, 2] + y * G[:, 1, 0] - 2 * x * G[:, 1, 1] - w * G[:, 1, 2] + z * G[:, 2, 0]
-        + w * G[:, 2, 1] - 2 * x * G[:, 2, 2],
-        -2 * y * G[:, 0, 0] + x * G[:, 0, 1] + w * G[:, 0, 2] + x * G[:, 1, 0] + z * G[:, 1, 2] - w * G[:, 2, 0]
-        + z * G[:, 2, 1] - 2 * y * G[:, 2, 2],
-        -2 * z * G[:, 0, 0] - w * G[:, 0, 1] + x * G[:, 0, 2] + w * G[:, 1, 0] - 2 * z * G[:, 1, 1] + y * G[:, 1, 2]
-        + x * G[:, 2, 0] + y * G[:, 2, 1],
-    ], dim=-1)
     qn = q / norm
+    g = 2.0 * torch.einsum("bij,ijkl,bl->bk", g_R, _QUAT_FORMS, qn)
     return (g - qn * (qn * g).sum(-1, keepdim=True)) / norm
 
 

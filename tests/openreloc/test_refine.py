@@ -223,3 +223,13 @@ def test_hand_written_gradient_equals_autograd(occlusion_aware: bool, refresh: b
     assert torch.isfinite(obj).all() and float(g_t.abs().max()) > 1.0
     assert torch.allclose(g_q, q_ref.grad, rtol=1e-3, atol=1e-2 * float(q_ref.grad.abs().max()))
     assert torch.allclose(g_t, t_ref.grad, rtol=1e-3, atol=1e-2 * float(t_ref.grad.abs().max()))
+
+
+def test_quaternion_rotation_matches_scipy() -> None:
+    from scipy.spatial.transform import Rotation
+
+    from openreloc_bench.openreloc.refine import _quat_to_rotmat
+
+    q = torch.tensor(np.random.default_rng(0).normal(size=(6, 4)), dtype=torch.float32)  # unnormalised on purpose
+    expected = Rotation.from_quat(q[:, [1, 2, 3, 0]].numpy()).as_matrix()  # scipy: (x, y, z, w)
+    assert np.allclose(_quat_to_rotmat(q).numpy(), expected, atol=1e-6)

@@ -119,17 +119,24 @@ def retrieve_reference(
     )
 
 
-def _solve_pnp(p3: np.ndarray, p2: np.ndarray, K: np.ndarray, thr: float) -> np.ndarray | None:
-    """T_cw from RANSAC (SQPnP) + Levenberg-Marquardt on the inliers, or None."""
+def solve_pnp(p3: np.ndarray, p2: np.ndarray, K: np.ndarray, ransac_threshold: float | None = None) -> np.ndarray | None:
+    """T_cw from >= 4 2D-3D correspondences: SQPnP, then Levenberg-Marquardt; with ``ransac_threshold``
+    (pixels) inside RANSAC and refined on its inliers (at least 4). None when OpenCV finds no finite pose."""
     p3 = np.ascontiguousarray(p3, dtype=np.float64).reshape(-1, 1, 3)
     p2 = np.ascontiguousarray(p2, dtype=np.float64).reshape(-1, 1, 2)
     try:
-        ok, rvec, tvec, inliers = cv2.solvePnPRansac(p3, p2, K, None, iterationsCount=200, reprojectionError=thr,
-                                                     confidence=0.999, flags=cv2.SOLVEPNP_SQPNP)
-        if not ok or inliers is None or len(inliers) < 4:
+        if ransac_threshold is None:
+            ok, rvec, tvec = cv2.solvePnP(p3, p2, K, None, flags=cv2.SOLVEPNP_SQPNP)
+        else:
+            ok, rvec, tvec, inliers = cv2.solvePnPRansac(p3, p2, K, None, iterationsCount=200,
+                                                         reprojectionError=ransac_threshold, confidence=0.999,
+                                                         flags=cv2.SOLVEPNP_SQPNP)
+            if not ok or inliers is None or len(inliers) < 4:
+                return None
+            p3, p2 = p3[inliers.ravel()], p2[inliers.ravel()]
+        if not ok:
             return None
-        idx = inliers.ravel()
-        rvec, tvec = cv2.solvePnPRefineLM(p3[idx], p2[idx], K, None, rvec, tvec)
+        rvec, tvec = cv2.solvePnPRefineLM(p3, p2, K, None, rvec, tvec)
     except cv2.error:
         return None
     T_cw = geometry.make_pose(cv2.Rodrigues(rvec)[0], tvec.ravel())
@@ -154,7 +161,7 @@ def pnp_prior(centroids: np.ndarray, truncated: np.ndarray, points: list[np.ndar
     thr = cfg.pnp_threshold * float(np.hypot(w, h))
     centres = np.stack([np.asarray(p, np.float64).mean(0) for p in points])
     use = ~np.asarray(truncated, bool) if int((~np.asarray(truncated, bool)).sum()) >= 4 else np.ones(len(centroids), bool)
-    T_cw = _solve_pnp(centres[use], centroids[use], K, thr)
+    T_cw = solve_pnp(centres[use], centroids[use], K, thr)
     for _ in range(cfg.pnp_iterations):
         if T_cw is None:
             break
@@ -166,7 +173,7 @@ def pnp_prior(centroids: np.ndarray, truncated: np.ndarray, points: list[np.ndar
             visible.append(np.asarray(p, np.float64)[inside].mean(0) if inside.any() else None)
         if any(v is None for v in visible):
             break
-        T_next = _solve_pnp(np.stack(visible), centroids, K, thr)
+        T_next = solve_pnp(np.stack(visible), centroids, K, thr)
         T_cw = T_next if T_next is not None else T_cw
     if T_cw is None or np.any(geometry.transform_points(T_cw, centres)[:, 2] <= 0):
         return None

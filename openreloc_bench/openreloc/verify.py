@@ -26,6 +26,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from openreloc_bench import geometry
+from openreloc_bench.openreloc.retrieval import solve_pnp
 
 _DIRECTIONS = np.array([d for d in itertools.product((-1, 0, 1), repeat=3)
                         if sum(map(abs, d)) in (1, 3)], dtype=np.float64)
@@ -113,13 +114,13 @@ def verify_matches(
     for _ in range(cfg.refits):
         if len(assignment) < 4:
             break
-        refit = _pnp(centers[list(assignment.values())], np.array([table.centroid[q] for q in assignment]), K)
+        refit = solve_pnp(centers[list(assignment.values())], np.array([table.centroid[q] for q in assignment]), K)
         if refit is None:
             break
-        candidate = table.assign(table.overlaps(refit[0][None], refit[1][None])[0])
+        candidate = table.assign(table.overlaps(refit[None, :3, :3], refit[None, :3, 3])[0])
         if len(candidate) < len(assignment):
             break
-        assignment, T_cw = candidate, geometry.make_pose(*refit)
+        assignment, T_cw = candidate, refit
     if len(assignment) < cfg.min_inliers:
         return None
     return Verification(assignment, geometry.invert(T_cw), len(R))
@@ -227,18 +228,3 @@ def _sample_poses(table: _CandidateTable, K: np.ndarray, samples: int,
     rv, tv = np.concatenate(rvecs), np.concatenate(tvecs)
     finite = np.isfinite(rv).all(1) & np.isfinite(tv).all(1)
     return Rotation.from_rotvec(rv[finite]).as_matrix().reshape(-1, 3, 3), tv[finite]
-
-
-def _pnp(X: np.ndarray, uv: np.ndarray, K: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
-    """(R_cw, t_cw) from >= 4 correspondences (SQPnP + Levenberg-Marquardt), or None."""
-    X = np.ascontiguousarray(X, np.float64).reshape(-1, 1, 3)
-    uv = np.ascontiguousarray(uv, np.float64).reshape(-1, 1, 2)
-    try:
-        ok, rvec, tvec = cv2.solvePnP(X, uv, K, None, flags=cv2.SOLVEPNP_SQPNP)
-        if not ok:
-            return None
-        rvec, tvec = cv2.solvePnPRefineLM(X, uv, K, None, rvec, tvec)
-    except cv2.error:
-        return None
-    R = cv2.Rodrigues(rvec)[0]
-    return (R, tvec.ravel()) if np.all(np.isfinite(R)) and np.all(np.isfinite(tvec)) else None

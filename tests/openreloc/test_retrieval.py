@@ -7,7 +7,7 @@ import pytest
 
 from openreloc_bench import geometry
 from openreloc_bench.openreloc.map import ReferenceFrame
-from openreloc_bench.openreloc.retrieval import CoarseConfig, diou_distance, pnp_prior, retrieve_reference
+from openreloc_bench.openreloc.retrieval import CoarseConfig, diou_distance, pnp_prior, retrieve_reference, solve_pnp
 
 
 @pytest.mark.parametrize(
@@ -88,3 +88,22 @@ def test_pnp_needs_four_objects() -> None:
     pts = [blob(np.array([x, 0.0, 1.0])) for x in (-1.0, 0.0, 1.0)]
     uv = np.stack([geometry.project(K, T_TRUE, p)[0].mean(0) for p in pts])
     assert pnp_prior(uv, np.zeros(3, bool), pts, K, (160, 120), CoarseConfig()) is None
+
+
+@pytest.mark.parametrize(("ransac_threshold", "outlier"), [(None, False), (4.0, False), (4.0, True)])
+def test_solve_pnp_recovers_the_camera(ransac_threshold: float | None, outlier: bool) -> None:
+    """Exact correspondences give the pose back; with RANSAC, a grossly wrong one is ignored."""
+    K = geometry.intrinsics_from_fov(640, 480, 60.0)
+    T_wc = geometry.look_at([0.5, -3.0, 1.4], [0.0, 0.0, 0.8])
+    X = np.random.default_rng(0).uniform([-1.5, -1.0, 0.0], [1.5, 1.0, 2.0], (8, 3))
+    uv, _ = geometry.project(K, T_wc, X)
+    if outlier:
+        uv[0] += 120.0
+    T_cw = solve_pnp(X, uv, K, ransac_threshold)
+    assert T_cw is not None and geometry.translation_error(T_wc, geometry.invert(T_cw)) < 1e-3
+
+
+def test_solve_pnp_with_too_few_points_is_none() -> None:
+    K = geometry.intrinsics_from_fov(640, 480, 60.0)
+    assert solve_pnp(np.zeros((2, 3)), np.zeros((2, 2)), K) is None
+    assert solve_pnp(np.zeros((3, 3)), np.zeros((3, 2)), K, ransac_threshold=4.0) is None

@@ -493,7 +493,7 @@ def _optimise(T_inits: list[np.ndarray], K: np.ndarray, targets: list[RefineTarg
         opt, factor=0.5, patience=cfg.plateau_patience, threshold=cfg.plateau_threshold
     )
     best_loss = torch.full((B,), float("inf"))
-    best_q, best_t = q.detach().clone(), t.detach().clone()
+    best_q, best_t = q.clone(), t.clone()
     initial = torch.full((B,), float("nan"))
     alive = torch.ones(B, dtype=torch.bool)
     why: list[str | None] = [None] * B

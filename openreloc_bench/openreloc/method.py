@@ -85,8 +85,8 @@ class OpenReLocConfig:
     min_mask_frac: float = 0.0005
     """Query objects covering less than this share of the image are ignored (too small to crop, embed
     or align). A share, not a pixel count, so that low-resolution scenes keep their objects: 154 px at
-    640x480, 10 px at 160x120 (a fixed 150 px dropped most of the smoke scene's objects; its R@50 went
-    from 50% to 75% with the share)."""
+    640x480, 10 px at 160x120 (a fixed 150 px dropped most objects of the smoke scene when it rendered
+    at 160x120; its R@50 went from 50% to 75% with the share, with the encoder of that time)."""
     max_objects: int = 16
     """At most this many query objects (the most unique) are matched, which bounds latency (measured on
     90 gen2 multi-room queries: 12 -> 16 gains 4.4 points R@50 -- walls, being unique, filled the 12

@@ -26,6 +26,10 @@ class Row:
     """Config overrides (ablations) -- unused for robustness rows."""
 
 
+_SINGLE_PRIOR: dict[str, Any] = {"coarse": {"top_frames": 1, "pnp": False}, "verification": {"hypothesis": False}}
+"""Refine only the best-ranked reference frame, as the paper does. The full method also refines the next
+frames, a PnP pose and the verification's pose, so the frame ranking of #5 rarely decides there."""
+
 ABLATION_ROWS: tuple[Row, ...] = (
     Row("no_refine", "#1 w/o Refine Stage", {"no_refine": True}),
     Row("no_coarse", "#2 w/o Coarse Stage", {"no_coarse": True}),
@@ -35,6 +39,9 @@ ABLATION_ROWS: tuple[Row, ...] = (
     Row("no_filtering", "#6 w/o Invalid Object Filtering", {"no_filtering": True}),
     Row("no_verification", "#7 w/o Geometric Verification (beyond the paper)", {"verification": {"enabled": False}}),
     Row("no_render_compare", "#8 w/o Render-and-Compare Choice (beyond the paper)", {"consistency": {"enabled": False}}),
+    Row("single_prior", "#9 Single Coarse Prior, DIoU (the paper's coarse stage)", _SINGLE_PRIOR),
+    Row("single_prior_visibility", "#10 Single Coarse Prior, w/o DIoU-based Retrieval (#5 on #9)",
+        {**_SINGLE_PRIOR, "retrieval": "visibility"}),
 )
 FULL_ROW = Row("full", "Ours Full")
 

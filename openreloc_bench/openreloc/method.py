@@ -255,7 +255,7 @@ class OpenReLoc:
 
         with stage("retrieve"):
             hypotheses = self._hypotheses(matches, objects, K, diag)
-            if hypotheses and verified is not None and not cfg.no_coarse:
+            if hypotheses and verified is not None and cfg.verification.hypothesis and not cfg.no_coarse:
                 hypotheses.append(("verified", verified))
         if not hypotheses:
             return Failure("no reference frame shares a matched landmark", diag)

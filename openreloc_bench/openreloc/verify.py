@@ -54,6 +54,10 @@ class VerifyConfig:
     points R@50 over 4)."""
     refits: int = 2
     """Local optimisation rounds: re-solve PnP on the inliers and re-collect them."""
+    hypothesis: bool = True
+    """Add the verified pose to the coarse stage's hypotheses. False keeps only its matches: with
+    ``coarse.top_frames: 1, coarse.pnp: false`` the refinement then starts from the paper's single
+    reference-frame prior, so the retrieval ranking decides (the single-prior ablation rows)."""
 
 
 @dataclass

@@ -198,6 +198,18 @@ def test_paper_literal_coarse_stage_has_one_hypothesis(map_dir: Path) -> None:
     assert res.diagnostics["chosen"] == f"reference:{res.diagnostics['reference_frame']['index']}"
 
 
+@pytest.mark.parametrize("hypothesis", [True, False])
+def test_the_verified_pose_is_a_hypothesis_unless_switched_off(map_dir: Path, hypothesis: bool) -> None:
+    q, _ = held_out_query()
+    res = localizer(map_dir, coarse={"top_frames": 1, "pnp": False}, verification={"hypothesis": hypothesis},
+                    refinement={"max_iterations": 5}).localize(q)
+    assert isinstance(res, PoseEstimate), res
+    assert res.diagnostics["verification"]["inliers"] >= 3  # verified matches are used either way
+    frame = f"reference:{res.diagnostics['reference_frame']['index']}"
+    sources = [h["source"] for h in res.diagnostics.get("hypotheses", [{"source": res.diagnostics["chosen"]}])]
+    assert sources == ([frame, "verified"] if hypothesis else [frame])
+
+
 def test_text_cache_encodes_each_phrase_once() -> None:
     from openreloc_bench.openreloc.method import TextCache
 

@@ -175,7 +175,9 @@ class OpenReLoc:
             self.describer = create_describer(cfg.describer, encoder=TextCache(self.encoder), **cfg.describer_options)
             self.describer.prepare()
         self.min_mask_area = max(1, math.ceil(cfg.min_mask_frac * m.width * m.height))
-        self.gt_segmenter = create_segmenter("gt", min_area=self.min_mask_area)
+        # every segment, however small, occludes (as the predicted track's do); ``min_mask_area`` then
+        # filters what is matched, on both tracks alike
+        self.gt_segmenter = create_segmenter("gt", min_area=1)
         self.segmenter = create_segmenter(cfg.segmenter, **cfg.segmenter_options)
         self.ids = sorted(m.landmarks)
         self.descriptors = m.descriptor_matrix(self.ids)

@@ -29,21 +29,22 @@ EVAL_SEED_OFFSET = 500_000
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    # the defaults are the recipe of the shipped weights (openreloc_bench/vision/weights/config.json)
     parser.add_argument("--out", type=Path, required=True, help="directory for image_tower.pt, config.json, evaluation.json")
     parser.add_argument("--seed", type=int, default=0, help="training seed (also picks the scene seeds)")
-    parser.add_argument("--scenes", type=int, default=60, help="training scenes to generate")
+    parser.add_argument("--scenes", type=int, default=210, help="training scenes to generate")
     parser.add_argument("--eval-scenes", type=int, default=10, help="held-out scenes for evaluation")
-    parser.add_argument("--epochs", type=int, default=4, help="training epochs")
+    parser.add_argument("--epochs", type=int, default=6, help="training epochs")
     parser.add_argument("--data", type=Path, default=None, help="scene folder (train/, eval/); default OUT/scenes")
     parser.add_argument("--views", type=int, default=3, help="views kept per object and split (random frames)")
     parser.add_argument("--width", type=int, default=320, help="render width of generated training scenes")
     parser.add_argument("--height", type=int, default=240, help="render height of generated training scenes")
-    parser.add_argument("--threads", type=int, default=1, help="torch threads (1 is faster than 2 on a loaded machine)")
+    parser.add_argument("--threads", type=int, default=2, help="torch threads (the shipped weights: 2; 1 is faster on a loaded machine)")
     parser.add_argument("--pairs-per-batch", type=int, default=128, help="anchor crops per batch (each with a second view)")
-    parser.add_argument("--input-size", type=int, default=32, help="crop side fed to the image tower")
+    parser.add_argument("--input-size", type=int, default=40, help="crop side fed to the image tower")
     parser.add_argument("--workers", type=int, default=2, help="parallel scene generation processes")
     parser.add_argument("--instance-weight", type=float, default=0.3, help="two-view image loss weight")
-    parser.add_argument("--scenes-per-batch", type=int, default=0,
+    parser.add_argument("--scenes-per-batch", type=int, default=4,
                         help="anchors of a batch come from this many scenes (0: all scenes at random)")
 
 

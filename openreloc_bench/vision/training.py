@@ -34,7 +34,7 @@ class TrainConfig:
 
     seed: int = 0
     """Seeds numpy and torch (weights init, batches, augmentation, caption choice)."""
-    epochs: int = 4
+    epochs: int = 6
     """Passes over the training crops (each crop is an anchor once per epoch, with a second view)."""
     pairs_per_batch: int = 128
     """Anchors per batch; each brings a second view of its object, so a batch holds twice as many crops."""
@@ -48,7 +48,7 @@ class TrainConfig:
     """Initial softmax temperature (learned, as in CLIP)."""
     instance_weight: float = 0.3
     """Weight of the two-view image-image loss (0 = text alignment only)."""
-    scenes_per_batch: int = 0
+    scenes_per_batch: int = 4
     """Anchors of a batch come from this many scenes (0: from all scenes at random). Relocalization
     tells apart the objects of *one* room; with anchors from many scenes the two-view loss's negatives
     are mostly other rooms' objects, which lighting and style already separate. Grouping by scene
@@ -57,7 +57,7 @@ class TrainConfig:
     """Random translation of crops, in pixels of the 64-px input."""
     brightness: float = 0.2
     """Brightness is scaled by a factor in [1 - b, 1 + b]."""
-    threads: int = 1
+    threads: int = 2
     """torch CPU threads."""
 
 

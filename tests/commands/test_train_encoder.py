@@ -37,3 +37,23 @@ def test_train_encoder_end_to_end_on_tiny_scenes(tmp_path: Path) -> None:
 def test_train_encoder_bad_arguments(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["train-encoder", "--out", str(tmp_path), "--epochs", "0"]) == 2
     assert "must be >= 1" in capsys.readouterr().err
+
+
+def test_defaults_are_the_recipe_of_the_shipped_weights() -> None:
+    """``train-encoder --out DIR`` must retrain what ships, so its defaults follow the weights' config."""
+    import argparse
+
+    from openreloc_bench.commands.train_encoder import add_arguments
+    from openreloc_bench.vision.offline import WEIGHTS_DIR
+
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    args = parser.parse_args(["--out", "unused"])
+    shipped = json.loads((WEIGHTS_DIR / "config.json").read_text())
+    train, data = shipped["train"], shipped["data"]
+    assert (args.seed, args.epochs, args.threads) == (train["seed"], train["epochs"], train["threads"])
+    assert (args.pairs_per_batch, args.scenes_per_batch) == (train["pairs_per_batch"], train["scenes_per_batch"])
+    assert args.instance_weight == train["instance_weight"]
+    assert (args.scenes, args.eval_scenes) == (len(data["train_scenes"]), len(data["eval_scenes"]))
+    assert (args.views, [args.width, args.height]) == (data["views_per_object_and_split"], data["render_size"])
+    assert args.input_size == shipped["tower"]["input_size"]

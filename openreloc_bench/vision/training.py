@@ -53,6 +53,12 @@ class TrainConfig:
     tells apart the objects of *one* room; with anchors from many scenes the two-view loss's negatives
     are mostly other rooms' objects, which lighting and style already separate. Grouping by scene
     makes them the look-alikes that association confuses."""
+    repeat_threshold: float = 0.0
+    """Category-balanced sampling (LVIS repeat factors, Gupta et al. 2019): a crop whose category is a share
+    f < t of the training crops is an anchor sqrt(t / f) times per epoch on average. The generator's
+    categories are long-tailed (cabinets 11% of the crops, a toaster 0.3%), and held-out zero-shot top-1
+    follows the training share (15% for the 39 categories under 0.5%, 78% for those at 2-5%). 0 = each
+    crop once."""
     shift_px: int = 6
     """Random translation of crops, in pixels of the 64-px input."""
     brightness: float = 0.2
@@ -139,7 +145,8 @@ def train_tower(
     opt = torch.optim.AdamW([*tower.parameters(), logit_scale], lr=cfg.lr, weight_decay=cfg.weight_decay)
     n = len(crops)
     half = min(cfg.pairs_per_batch, n)
-    steps_per_epoch = max(1, n // half)
+    repeats = repeat_factors(crops.category, cfg.repeat_threshold) if cfg.repeat_threshold > 0 else None
+    steps_per_epoch = max(1, (n if repeats is None else int(repeats.sum())) // half)
     scene_of = np.unique(crops.scene, return_inverse=True)[1]
     total = steps_per_epoch * cfg.epochs
     warm = max(1, int(cfg.warmup_frac * total))
@@ -151,7 +158,7 @@ def train_tower(
     bar = tqdm(total=total, desc="train-encoder", mininterval=5)
     for epoch in range(cfg.epochs):
         losses = []
-        for anchor in epoch_batches(scene_of, half, cfg.scenes_per_batch, rng)[:steps_per_epoch]:
+        for anchor in epoch_batches(scene_of, half, cfg.scenes_per_batch, rng, repeats)[:steps_per_epoch]:
             partner = np.array([_other_view(groups[keys[a]], a, rng) for a in anchor])
             idx = np.concatenate([anchor, partner])
             cap = np.array([per_crop[i][rng.integers(len(per_crop[i]))] for i in idx])
@@ -180,15 +187,28 @@ def train_tower(
     return tower.eval(), {"history": history, "captions": len(captions), "train_seconds": round(time.time() - t0, 1)}
 
 
-def epoch_batches(scene_of: np.ndarray, size: int, scenes_per_batch: int, rng: np.random.Generator) -> list[np.ndarray]:
-    """One epoch's anchor batches of ``size`` crop indices, each crop used at most once: random over
-    all crops, or, with ``scenes_per_batch`` k > 0, k runs of ``size // k`` crops of one scene each (a
-    run may straddle two scenes where one scene's crops end)."""
+def repeat_factors(categories: list[str], threshold: float) -> np.ndarray:
+    """Per crop, how many times per epoch it is an anchor on average (see ``TrainConfig.repeat_threshold``)."""
+    _, inv, counts = np.unique(np.asarray(categories), return_inverse=True, return_counts=True)
+    share = counts / max(1, len(inv))
+    return np.maximum(1.0, np.sqrt(threshold / share))[inv] if threshold > 0 else np.ones(len(inv))
+
+
+def epoch_batches(scene_of: np.ndarray, size: int, scenes_per_batch: int, rng: np.random.Generator,
+                  repeats: np.ndarray | None = None) -> list[np.ndarray]:
+    """One epoch's anchor batches of ``size`` crop indices, each crop used at most once (or, with
+    ``repeats``, floor(r) or ceil(r) times at random, r on average): random over all crops, or, with
+    ``scenes_per_batch`` k > 0, k runs of ``size // k`` crops of one scene each (a run may straddle two
+    scenes where one scene's crops end)."""
+    pool = np.arange(len(scene_of))
+    if repeats is not None:
+        whole = np.floor(repeats).astype(int)
+        pool = np.repeat(pool, whole + (rng.random(len(pool)) < repeats - whole))
     if scenes_per_batch <= 0:
-        seq = rng.permutation(len(scene_of))
+        seq = rng.permutation(pool)
         run, k = size, 1
     else:
-        seq = np.concatenate([rng.permutation(np.flatnonzero(scene_of == sc)) for sc in rng.permutation(scene_of.max() + 1)])
+        seq = np.concatenate([rng.permutation(pool[scene_of[pool] == sc]) for sc in rng.permutation(scene_of.max() + 1)])
         run = max(1, size // scenes_per_batch)
         k = max(1, size // run)
     runs = [seq[i : i + run] for i in range(0, len(seq) - run + 1, run)]

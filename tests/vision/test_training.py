@@ -5,7 +5,13 @@ import pytest
 
 from openreloc_bench.vision import vocabulary as voc
 from openreloc_bench.vision.crops import CropSet
-from openreloc_bench.vision.training import _average_precision, _instance_recall, caption_table, epoch_batches
+from openreloc_bench.vision.training import (
+    _average_precision,
+    _instance_recall,
+    caption_table,
+    epoch_batches,
+    repeat_factors,
+)
 
 
 def _crops(categories: list[str], colours: list[str], descriptions: list[str] | None = None) -> CropSet:
@@ -77,6 +83,30 @@ def test_epoch_batches_use_each_crop_once_and_group_scenes(scenes_per_batch: int
         assert np.mean([len(np.unique(scene_of[b])) for b in batches]) < 1.5 * scenes_per_batch
     else:
         assert np.mean([len(np.unique(scene_of[b])) for b in batches]) > 8
+
+
+def test_repeat_factors_lift_rare_categories_only() -> None:
+    cats = ["cabinet"] * 90 + ["bed"] * 9 + ["toaster"]
+    r = repeat_factors(cats, 0.04)
+    assert set(r[:90]) == {1.0} and set(r[90:99]) == {1.0}  # shares 0.90 and 0.09 are above 0.04
+    assert r[99] == pytest.approx(np.sqrt(0.04 / 0.01))
+    np.testing.assert_array_equal(repeat_factors(cats, 0.0), np.ones(100))
+
+
+@pytest.mark.parametrize("scenes_per_batch", [0, 4])
+def test_epoch_batches_repeat_crops_by_their_factor(scenes_per_batch: int) -> None:
+    rng = np.random.default_rng(0)
+    scene_of = np.repeat(np.arange(10), 100)
+    repeats = np.ones(1000)
+    repeats[:50] = 3.0  # exactly three times
+    repeats[50:100] = 1.5  # once or twice, 1.5 on average
+    batches = epoch_batches(scene_of, 32, scenes_per_batch, rng, repeats)
+    used = np.concatenate(batches)
+    counts = np.bincount(used, minlength=1000)
+    assert all(len(b) == 32 for b in batches)
+    assert len(used) >= 1000 + 100 + 25 - 32 - 20  # ~1125 anchors; runs that do not fill a batch are cut
+    assert counts[:50].mean() > 2.5 and set(counts[50:100]) <= {0, 1, 2} and counts[50:100].mean() > 1.2
+    assert counts[100:].max() <= 1
 
 
 def test_epoch_batches_never_return_nothing() -> None:

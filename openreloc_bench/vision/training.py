@@ -35,7 +35,8 @@ class TrainConfig:
     seed: int = 0
     """Seeds numpy and torch (weights init, batches, augmentation, caption choice)."""
     epochs: int = 6
-    """Passes over the training crops (each crop is an anchor once per epoch, with a second view)."""
+    """Passes over the training crops (each crop is an anchor once per epoch, or by its repeat factor with
+    ``repeat_threshold``, each time with a second view)."""
     pairs_per_batch: int = 128
     """Anchors per batch; each brings a second view of its object, so a batch holds twice as many crops."""
     lr: float = 2e-3
@@ -60,7 +61,7 @@ class TrainConfig:
     follows the training share (15% for the 39 categories under 0.5%, 78% for those at 2-5%). 0 = each
     crop once."""
     shift_px: int = 6
-    """Random translation of crops, in pixels of the 64-px input."""
+    """Random translation of crops, in pixels of the tower's input."""
     brightness: float = 0.2
     """Brightness is scaled by a factor in [1 - b, 1 + b]."""
     threads: int = 2

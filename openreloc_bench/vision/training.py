@@ -148,6 +148,7 @@ def train_tower(
     opt = torch.optim.AdamW([*tower.parameters(), logit_scale], lr=cfg.lr, weight_decay=cfg.weight_decay)
     n = len(crops)
     half = min(cfg.pairs_per_batch, n)
+    # None, not ones, when off: no random draws for repeats, so the batches stay those of the shipped weights
     repeats = repeat_factors(crops.category, cfg.repeat_threshold) if cfg.repeat_threshold > 0 else None
     steps_per_epoch = max(1, (n if repeats is None else int(repeats.sum())) // half)
     scene_of = np.unique(crops.scene, return_inverse=True)[1]

@@ -168,11 +168,12 @@ class OpenReLoc:
             raise DataError(map_dir, f"built with {name} encoder weights {built_with}, but the installed weights are "
                                      f"{now}: rebuild the map (descriptors from other weights cannot be compared)")
         self.encoder = create_encoder(name, **enc)
+        # the describer's vocabulary and the phrases it returns recur across objects and queries: embed each once
+        self.text_encoder = TextCache(self.encoder)
         self.describer = None
         if not cfg.no_language:
             # every describer embeds its phrase choice (or its fallback) in the map's encoder space
-            # the describer re-encodes the same vocabulary phrases for every object: memoise them
-            self.describer = create_describer(cfg.describer, encoder=TextCache(self.encoder), **cfg.describer_options)
+            self.describer = create_describer(cfg.describer, encoder=self.text_encoder, **cfg.describer_options)
             self.describer.prepare()
         self.min_mask_area = max(1, math.ceil(cfg.min_mask_frac * m.width * m.height))
         # every segment, however small, occludes (as the predicted track's do); ``min_mask_area`` then
@@ -329,7 +330,7 @@ class OpenReLoc:
         with stage("describe"):
             if self.describer is not None:
                 phrases = self.describer.describe_many(rgb, [o.mask for o in objects])
-                for o, p, e in zip(objects, phrases, self.encoder.encode_texts(phrases)):
+                for o, p, e in zip(objects, phrases, self.text_encoder.encode_texts(phrases)):
                     o.phrase, o.text = p, e
         return objects, visual @ self.descriptors.T
 

@@ -129,6 +129,12 @@ def test_language_modality_uses_the_describer(map_dir: Path) -> None:
     res = m.localize(q)
     assert isinstance(res, PoseEstimate)
     assert all(isinstance(x["phrase"], str) and x["text_sim"] is not None for x in res.diagnostics["matches"])
+    # the same view again: its phrases are embedded already, so no text reaches the encoder
+    texts: list[str] = []
+    inner = m.encoder.encode_texts
+    m.encoder.encode_texts = lambda batch: texts.extend(batch) or inner(batch)
+    again = m.localize(q)
+    assert texts == [] and [x["phrase"] for x in again.diagnostics["matches"]] == [x["phrase"] for x in res.diagnostics["matches"]]
 
 
 def test_bad_inputs_are_failures_with_reasons(map_dir: Path) -> None:

@@ -12,7 +12,8 @@ per object, and the per-object losses averaged over the matched objects. Adam op
 Speed: the forward nearest mask pixel of every image pixel is precomputed once per object with a
 distance transform that also returns the nearest pixel (``cv2.distanceTransformWithLabels``), so a
 step only gathers coordinates (ICP-style: the correspondence is fixed within a step and the residual
-``p - nearest(p)`` is differentiable in ``p``). The backward path is one batched ``torch.cdist``.
+``p - nearest(p)`` is differentiable in ``p``). The backward path's nearest points come from one
+batched matmul (:func:`nearest_points`).
 All objects are padded into one batch so a step is a handful of tensor ops, and the gradient is
 written out by the chain rule (``_Problem.gradient``), since autograd's bookkeeping on such small
 ops cost as much as the arithmetic.
@@ -173,6 +174,17 @@ def nearest_mask_pixels(mask: np.ndarray) -> np.ndarray:
     return table[labels]
 
 
+def nearest_points(pix: torch.Tensor, pts: torch.Tensor) -> torch.Tensor:
+    """(K, M) index of the nearest of ``pts`` (K, N, 2) to each of ``pix`` (K, M, 2), per batch row.
+
+    The argmin of ``|p|^2 - 2 x.p``: the squared distance without ``|x|^2``, which is constant along the
+    searched axis. One batched matmul and no square root, where ``torch.cdist`` also forms both norms
+    and the root: 35% faster on the refinement's (40, 300, 300) blocks. numpy's argmin is ~1.5x faster
+    than torch's on them."""
+    score = torch.baddbmm((pts * pts).sum(-1).unsqueeze(1), pix, pts.transpose(1, 2), alpha=-2.0)
+    return torch.from_numpy(score.numpy().argmin(axis=2))
+
+
 def backward_pixels(mask: np.ndarray, which: str) -> np.ndarray:
     """The mask pixels the backward path starts from (see :attr:`RefineConfig.backward_pixels`)."""
     mask = np.asarray(mask, dtype=bool)
@@ -313,9 +325,10 @@ class _Problem:
         self.pix = torch.from_numpy(pix).expand(n_hyp, -1, -1, -1).reshape(n_hyp * n_obj, n_pix, 2)
         self.pix_valid = torch.from_numpy(pix_valid)
         self.n_pix = self.pix_valid.sum(1).clamp_min(1)
-        self.nearest = torch.from_numpy(nearest).reshape(-1, 2)
-        self.outside = torch.from_numpy(outside).reshape(-1)
-        self.counted = torch.from_numpy(counted).reshape(-1)
+        # per pixel of every object's image: nearest mask pixel (x, y), outside the mask, counted; one table
+        # so that a step gathers once (``index_select`` on it: 3x faster than three advanced-indexing lookups)
+        self.pixel_table = torch.from_numpy(np.concatenate(
+            [nearest, outside[..., None], counted[..., None]], axis=-1).astype(np.float32)).reshape(-1, 4)
         self.offset = (torch.arange(n_obj) * (H * W)).view(1, n_obj, 1)
         self.K = torch.tensor(scale_intrinsics(K, s), dtype=torch.float32)
         self.n_hyp, self.n_obj = n_hyp, n_obj
@@ -345,19 +358,19 @@ class _Problem:
         ui, vi = torch.round(u.detach()).long(), torch.round(v.detach()).long()
         in_img = front & (ui >= 0) & (ui < self.W) & (vi >= 0) & (vi < self.H)
         flat = (vi.clamp(0, self.H - 1) * self.W + ui.clamp(0, self.W - 1)) + self.offset
-        use = in_img & self.counted[flat]
-        resid = (uv - self.nearest[flat]) * self.outside[flat].unsqueeze(-1)
+        looked_up = self.pixel_table.index_select(0, flat.reshape(-1)).view(*flat.shape, 4)
+        use = in_img & (looked_up[..., 3] > 0)
+        resid = (uv - looked_up[..., :2]) * looked_up[..., 2:3]
         fwd_sq = (resid**2).sum(-1)
         n_use = use.sum(-1).clamp_min(1)
         fwd = (huber_sq(fwd_sq, delta) * use).sum(-1) / n_use
         # backward: mask pixels -> nearest projected point (points behind the camera are absent).
         # The correspondence is found without gradient, then the distance to it is differentiated:
-        # O(M) backward instead of cdist's O(M x N).
+        # O(M) backward instead of O(M x N) through a distance matrix.
         uv_b = torch.where(front.unsqueeze(-1), uv, torch.full_like(uv, _BIG)).reshape(self.n_hyp * self.n_obj, -1, 2)
         if refresh or self.nn_idx is None:
-            with torch.no_grad():  # numpy's argmin is ~1.5x faster than torch's on these (B * n_obj, M, N) blocks
-                nearest = torch.from_numpy(torch.cdist(self.pix, uv_b.detach()).numpy().argmin(axis=2))
-                self.nn_idx = nearest.unsqueeze(-1).expand(-1, -1, 2)
+            with torch.no_grad():
+                self.nn_idx = nearest_points(self.pix, uv_b.detach()).unsqueeze(-1).expand(-1, -1, 2)
         bwd_diff = torch.gather(uv_b, 1, self.nn_idx) - self.pix  # nearest projected point - mask pixel
         bwd_sq = (bwd_diff**2).sum(-1).reshape(self.n_hyp, self.n_obj, -1)
         bwd = (huber_sq(bwd_sq, delta) * self.pix_valid).sum(-1) / self.n_pix
@@ -415,8 +428,11 @@ def _weights(obj_losses: torch.Tensor, cfg: RefineConfig, active: bool, unit: fl
     losses = obj_losses.detach()
     if not active:
         return torch.ones_like(losses)
-    limit = torch.clamp(cfg.outlier_factor * losses.nan_to_num(_BIG).quantile(0.5, dim=-1, keepdim=True),
-                        min=cfg.outlier_min_loss * unit)
+    # the median as torch.quantile(0.5) interpolates it, without quantile's overhead (0.3 ms per call)
+    ordered = losses.nan_to_num(_BIG).sort(dim=-1).values
+    n = ordered.shape[-1]
+    median = 0.5 * (ordered[..., (n - 1) // 2] + ordered[..., n // 2])
+    limit = torch.clamp(cfg.outlier_factor * median.unsqueeze(-1), min=cfg.outlier_min_loss * unit)
     return (losses <= limit).float()
 
 
@@ -493,7 +509,7 @@ def _optimise(T_inits: list[np.ndarray], K: np.ndarray, targets: list[RefineTarg
         opt, factor=0.5, patience=cfg.plateau_patience, threshold=cfg.plateau_threshold
     )
     best_loss = torch.full((B,), float("inf"))
-    best_q, best_t = q.clone(), t.clone()
+    best_q, best_t = q.detach().clone(), t.detach().clone()
     initial = torch.full((B,), float("nan"))
     alive = torch.ones(B, dtype=torch.bool)
     why: list[str | None] = [None] * B
@@ -515,13 +531,14 @@ def _optimise(T_inits: list[np.ndarray], K: np.ndarray, targets: list[RefineTarg
         annealed = it > cfg.anneal_steps or cfg.huber_delta_start <= cfg.huber_delta
         improved = alive & (value < best_loss) if annealed else alive  # best only counts at the final delta
         best_loss = torch.where(improved, value, best_loss)
-        best_q[improved], best_t[improved] = q[improved], t[improved]
+        best_q = torch.where(improved.unsqueeze(-1), q.detach(), best_q)
+        best_t = torch.where(improved.unsqueeze(-1), t.detach(), best_t)
         q.grad, t.grad = problem.gradient(q, t, terms, torch.where(alive.unsqueeze(-1), coef, 0.0))
         bad = alive & ~(torch.isfinite(q.grad).all(-1) & torch.isfinite(t.grad).all(-1))
         for b in torch.nonzero(bad).flatten().tolist():
             alive[b], why[b] = False, "non-finite gradient"
-        q.grad[~alive] = 0.0
-        t.grad[~alive] = 0.0
+        q.grad = torch.where(alive.unsqueeze(-1), q.grad, 0.0)
+        t.grad = torch.where(alive.unsqueeze(-1), t.grad, 0.0)
         opt.step()
         if annealed:
             sched.step(float(value[alive].sum()) if alive.any() else 0.0)
@@ -595,9 +612,10 @@ class _GaussNewtonTerms:
         self.pix = problem.pix[:n].numpy().astype(np.float64)  # (n_obj, n_pix, 2)
         self.pix_valid = problem.pix_valid.numpy()
         self.n_pix = np.maximum(self.pix_valid.sum(1), 1)
-        self.nearest = problem.nearest.numpy().astype(np.float64)
-        self.outside = problem.outside.numpy()
-        self.counted = problem.counted.numpy()
+        table = problem.pixel_table.numpy()
+        self.nearest = table[:, :2].astype(np.float64)
+        self.outside = table[:, 2] > 0
+        self.counted = table[:, 3] > 0
         self.K = problem.K.numpy().astype(np.float64)
         self.H, self.W, self.n_obj, self.delta = problem.H, problem.W, n, delta
         self.min_depth = problem.cfg.min_depth

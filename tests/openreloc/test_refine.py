@@ -14,6 +14,7 @@ from openreloc_bench.openreloc.refine import (
     backward_pixels,
     huber_sq,
     nearest_mask_pixels,
+    nearest_points,
     refine_pose,
     refine_poses,
 )
@@ -63,6 +64,20 @@ def test_nearest_mask_pixels_matches_exact_distance_transform() -> None:
     assert mask[near[..., 1].astype(int), near[..., 0].astype(int)].all()
     assert np.percentile(np.abs(dist - exact), 99) < 1e-6
     assert np.all(near[mask] == np.stack([xs, ys], -1)[mask])
+
+
+@pytest.mark.parametrize("padded", [0, 7])
+def test_nearest_points_is_the_exact_nearest_neighbour(padded: int) -> None:
+    """Pixel-scale coordinates plus absent points parked at 1e6 (as the refinement pads them): dropping
+    |x|^2 must not change which point is nearest."""
+    g = torch.Generator().manual_seed(padded)
+    pix = torch.rand(6, 50, 2, generator=g) * 320
+    pts = torch.rand(6, 40, 2, generator=g) * 400 - 40
+    pts[:, 40 - padded :] = 1e6
+    exact = torch.cdist(pix.double(), pts.double()).min(dim=2).values
+    nearest = torch.gather(pts, 1, nearest_points(pix, pts).unsqueeze(-1).expand(-1, -1, 2))
+    found = torch.linalg.vector_norm(nearest - pix, dim=-1)
+    assert torch.allclose(found.double(), exact, atol=1e-3)
 
 
 def test_backward_pixels_boundary_excludes_image_border() -> None:

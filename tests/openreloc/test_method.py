@@ -300,3 +300,18 @@ def test_verification_evidence_leaves_out_objects_the_association_dropped() -> N
     matched = {0: Match(query=0, landmark=10, visual_sim=0.2, text_sim=None, how="graph", candidates=[10])}
     evidence = verification_evidence(objects, matched, sims, ids, frozenset({30}), n_candidates=5)
     assert [e.candidates for e in evidence] == [[0, 1], []]  # rows: its match first, then by similarity
+
+
+def test_a_query_runs_with_single_threaded_blas_and_restores_it(map_dir: Path, monkeypatch) -> None:
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    def blas_threads() -> set[int]:
+        return {lib["num_threads"] for lib in threadpool_info() if lib["user_api"] == "blas"}
+
+    m = localizer(map_dir)
+    seen: list[set[int]] = []
+    inner = m._localize
+    monkeypatch.setattr(m, "_localize", lambda *a: (seen.append(blas_threads()), inner(*a))[1])
+    with threadpool_limits(limits=2, user_api="blas"):
+        assert isinstance(m.localize(held_out_query()[0]), PoseEstimate)
+        assert seen == [{1}] and blas_threads() == {2}

@@ -1,12 +1,14 @@
-"""Per-stage latency and recall of a method on one scene split (the paper's efficiency table).
+"""Per-stage latency and recall of a method on scene splits, one query at a time (the paper's efficiency
+table). ``--map`` and ``--scene`` may repeat, in pairs: the table then pools every scene's queries.
 
-  .venv/bin/python benchmarks/bench_localize.py --map MAPDIR --scene DIR/<scene> [--split query]
-      [--method openreloc] [--track oracle-mask] [--set key=value ...] [--threads 1]
+  .venv/bin/python benchmarks/bench_localize.py --map MAPDIR --scene DIR/<scene> [--map ... --scene ...]
+      [--split query] [--method openreloc] [--track oracle-mask] [--set key=value ...] [--threads 1]
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -21,20 +23,27 @@ from openreloc_bench.openreloc.method import STAGES
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--map", type=Path, required=True)
-    p.add_argument("--scene", type=Path, required=True)
+    p.add_argument("--map", type=Path, action="append", required=True, help="a scene's map (repeat with --scene)")
+    p.add_argument("--scene", type=Path, action="append", required=True, help="the scene the map is of")
     p.add_argument("--split", default="query")
     p.add_argument("--method", default="openreloc")
     p.add_argument("--track", default="oracle-mask", choices=("oracle-mask", "predicted"))
     p.add_argument("--set", dest="overrides", action="append", default=[])
     p.add_argument("--threads", type=int, default=1, help="torch threads (the 2-core target machine: 1)")
     args = p.parse_args()
+    if len(args.map) != len(args.scene):
+        p.error(f"--map and --scene come in pairs: got {len(args.map)} maps and {len(args.scene)} scenes")
     torch.set_num_threads(args.threads)
     method = create_method(args.method, **parse_overrides(args.overrides))
-    seq = Scene(args.scene).sequence(args.split)
-    method.load_map(args.map)
-    records = localize_split(method, seq, args.track)
-    print(f"{args.method} on {args.scene.name}/{args.split} ({args.track}, {len(records)} queries)")
+    records, gt = [], {}
+    for map_dir, scene in zip(args.map, args.scene):
+        seq = Scene(scene).sequence(args.split)
+        method.load_map(map_dir)
+        # query names repeat across scenes: prefix them with the scene's
+        records += [dataclasses.replace(r, name=f"{scene.name}/{r.name}") for r in localize_split(method, seq, args.track)]
+        gt.update({f"{scene.name}/{n}": T for n, T in zip(seq.names, seq.poses)})
+    scenes = ", ".join(s.name for s in args.scene)
+    print(f"{args.method} on {scenes} / {args.split} ({args.track}, {len(records)} queries, one at a time)")
     print(f"{'stage':<10} {'median s':>9} {'mean s':>9}")
     for stage in (*STAGES, "total"):
         vals = [r.diagnostics.get("timings", {}).get(stage) for r in records]
@@ -50,7 +59,7 @@ def main() -> None:
     if hyps:
         kinds = [h.split(":")[0] for h in hyps]
         print("chosen hypothesis: " + ", ".join(f"{k} x{kinds.count(k)}" for k in sorted(set(kinds))))
-    for line in summary(records, dict(zip(seq.names, seq.poses))):
+    for line in summary(records, gt):
         print(line)
 
 

@@ -103,8 +103,9 @@ class RefineConfig:
     0 = constant ``huber_delta`` (paper)."""
     correspondence_every: int = 3
     """Beyond the paper (speed): the backward path's nearest projected points (a brute-force search: half
-    of a step's time with ``torch.cdist``, ~15% of the refinement with :func:`nearest_points`) are recomputed every this many steps
-    and held fixed in between, as classic ICP alternates correspondence and update steps. 1 = every step."""
+    of a step's time with ``torch.cdist``, ~15% of the refinement with :func:`nearest_points`) are
+    recomputed every this many steps and held fixed in between, as classic ICP alternates correspondence
+    and update steps. 1 = every step."""
     anneal_steps: int = 30
     """Steps of the Huber-threshold decay (used only with ``huber_delta_start``)."""
     solver: Literal["adam", "gauss-newton"] = "adam"

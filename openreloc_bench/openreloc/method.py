@@ -403,9 +403,9 @@ class OpenReLoc:
 
 @functools.cache
 def _blas_controller() -> ThreadpoolController:
-    """numpy's and scipy's BLAS libraries, limited to one thread during a query: its BLAS calls are small
-    (hundreds of rows), but OpenBLAS's idle workers busy-wait after each call and take the cores from
-    torch. Measured on the 2-core machine: MiniLM on a query's 8 phrases 83 -> 34 ms."""
+    """numpy's and scipy's BLAS libraries, limited to one thread during a query: a query's BLAS calls are
+    small (hundreds of rows), but OpenBLAS's idle workers busy-wait after each call and take the cores
+    from torch. Measured on the 2-core machine: MiniLM on a query's 8 phrases 83 -> 34 ms."""
     return ThreadpoolController()
 
 

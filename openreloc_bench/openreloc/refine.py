@@ -12,8 +12,8 @@ per object, and the per-object losses averaged over the matched objects. Adam op
 Speed: the forward nearest mask pixel of every image pixel is precomputed once per object with a
 distance transform that also returns the nearest pixel (``cv2.distanceTransformWithLabels``), so a
 step only gathers coordinates (ICP-style: the correspondence is fixed within a step and the residual
-``p - nearest(p)`` is differentiable in ``p``). The backward path's nearest points come from one
-batched matmul (:func:`nearest_points`).
+``p - nearest(p)`` is differentiable in ``p``). The backward path's nearest points come from
+batched matmuls (:func:`nearest_points`).
 All objects are padded into one batch so a step is a handful of tensor ops, and the gradient is
 written out by the chain rule (``_Problem.gradient``), since autograd's bookkeeping on such small
 ops cost as much as the arithmetic.

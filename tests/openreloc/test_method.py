@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from threadpoolctl import threadpool_info, threadpool_limits
 from tests.openreloc.boxworld import ROOM, MeanColorEncoder, camera_poses, render, write_boxworld
 
 from openreloc_bench import geometry
@@ -303,15 +304,18 @@ def test_verification_evidence_leaves_out_objects_the_association_dropped() -> N
 
 
 def test_a_query_runs_with_single_threaded_blas_and_restores_it(map_dir: Path, monkeypatch) -> None:
-    from threadpoolctl import threadpool_info, threadpool_limits
-
     def blas_threads() -> set[int]:
         return {lib["num_threads"] for lib in threadpool_info() if lib["user_api"] == "blas"}
 
     m = localizer(map_dir)
     seen: list[set[int]] = []
     inner = m._localize
-    monkeypatch.setattr(m, "_localize", lambda *a: (seen.append(blas_threads()), inner(*a))[1])
+
+    def spy(*args):
+        seen.append(blas_threads())
+        return inner(*args)
+
+    monkeypatch.setattr(m, "_localize", spy)
     with threadpool_limits(limits=2, user_api="blas"):
         assert isinstance(m.localize(held_out_query()[0]), PoseEstimate)
         assert seen == [{1}] and blas_threads() == {2}

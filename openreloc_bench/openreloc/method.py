@@ -232,6 +232,7 @@ class OpenReLoc:
 
         invalid = frozenset() if cfg.no_filtering else frozenset(set(self.ids) - set(m.valid_ids()))
         verified: np.ndarray | None = None  # the verification stage's pose, when it finds one
+        alternatives: list[tuple[list[Match], np.ndarray]] = []  # its further modes: (their own matches, pose)
         appearance: np.ndarray | None = None  # (masks, landmarks) visual similarity; none for the oracle
         if cfg.association.oracle:
             if query.instance is None:
@@ -254,7 +255,7 @@ class OpenReLoc:
                 matches = associate(objects, self.ids, self.descriptors, graph, cfg.association, invalid)
             if cfg.verification.enabled:
                 with stage("verify"):
-                    matches, verified = self._verify(matches, objects, invalid, K, diag)
+                    matches, verified, alternatives = self._verify(matches, objects, invalid, K, diag)
         diag["matches"] = [_match_diag(mt, objects, m) for mt in matches]
         if len(matches) < cfg.min_matches:
             return Failure(f"{len(matches)} landmark(s) associated, need at least {cfg.min_matches}", diag)
@@ -263,21 +264,32 @@ class OpenReLoc:
             hypotheses = self._hypotheses(matches, objects, K, diag)
             if hypotheses and verified is not None and cfg.verification.hypothesis and not cfg.no_coarse:
                 hypotheses.append(("verified", verified))
+            else:
+                alternatives = []  # further modes come only with the verified pose
         if not hypotheses:
             return Failure("no reference frame shares a matched landmark", diag)
 
-        targets = [RefineTarget(mt.landmark, m.landmarks[mt.landmark].points, objects[mt.query].mask) for mt in matches]
         refining = not cfg.no_refine
-        if refining or len(hypotheses) > 1:  # several hypotheses without refinement: keep the best-fitting one
+        if refining or len(hypotheses) + len(alternatives) > 1:  # several without refinement: keep the best-fitting
             rcfg = cfg.refinement if refining else dataclasses.replace(cfg.refinement, max_iterations=0)
             with stage("refine" if refining else "retrieve"):
-                results = refine_poses([T for _, T in hypotheses], K, targets, rcfg, seed=cfg.seed, occluders=occluders)
+                results = refine_poses([T for _, T in hypotheses], K, self._targets(matches, objects), rcfg,
+                                       seed=cfg.seed, occluders=occluders)
+                match_sets = [matches] * len(results)
+                for j, (alt_matches, T_alt) in enumerate(alternatives, start=2):  # its own matches: its own batch
+                    results += refine_poses([T_alt], K, self._targets(alt_matches, objects), rcfg, seed=cfg.seed,
+                                            occluders=occluders)
+                    hypotheses.append((f"verified:{j}", T_alt))
+                    match_sets.append(alt_matches)
             explained = [0.0] * len(results)
             if cfg.consistency.enabled:
                 with stage("compare"):
                     explained = self._explained(results, masks, appearance, K)
             best = choose_hypothesis([r.loss for r in results], explained, cfg.consistency.tie_share)
             res = results[best]
+            if match_sets[best] is not matches:  # a further verification mode won: its matches explain the pose
+                matches = match_sets[best]
+                diag["matches"] = [_match_diag(mt, objects, m) for mt in matches]
             diag["hypotheses"] = [{"source": src, "initial_loss": _num(r.initial_loss), "loss": _num(r.loss),
                                    "explained": round(e, 4), "iterations": r.iterations,
                                    "T_wc": np.round(r.T_wc, 6).tolist()}
@@ -337,10 +349,16 @@ class OpenReLoc:
                     o.phrase, o.text = p, e
         return objects, visual @ self.descriptors.T
 
+    def _targets(self, matches: list[Match], objects: list[QueryObject]) -> list[RefineTarget]:
+        """What the refinement aligns: each matched object's mask with its landmark's points."""
+        assert self.map is not None
+        return [RefineTarget(mt.landmark, self.map.landmarks[mt.landmark].points, objects[mt.query].mask) for mt in matches]
+
     def _verify(self, matches: list[Match], objects: list[QueryObject], invalid: frozenset[int], K: np.ndarray,
-                diag: dict[str, Any]) -> tuple[list[Match], np.ndarray | None]:
+                diag: dict[str, Any]) -> tuple[list[Match], np.ndarray | None, list[tuple[list[Match], np.ndarray]]]:
         """Object-level RANSAC over the matched objects' candidates (:func:`verification_evidence`): the
-        matches one pose explains, and that pose; the association unchanged when none does."""
+        matches one pose explains, and that pose; the association unchanged when none does. Third: the
+        further modes' (matches, pose), with ``verification.modes`` > 1."""
         cfg = self.config
         matched = {mt.query: mt for mt in matches}
         sims = np.stack([o.visual for o in objects]) @ self.descriptors.T
@@ -348,18 +366,26 @@ class OpenReLoc:
         result = verify_matches(evidence, self.centers, self.extremes, K, cfg.verification, seed=cfg.seed)
         if result is None:
             diag["verification"] = {"inliers": 0, "kept": "association"}
-            return matches, None
-        out = []
-        for q, row in sorted(result.assignment.items()):
-            lid, o = self.ids[row], objects[q]
-            out.append(matched[q] if matched[q].landmark == lid else Match(
-                query=q, landmark=lid, visual_sim=float(sims[q, row]),
-                text_sim=None if o.text is None else float(self.descriptors[row] @ o.text), how="verified",
-                candidates=[self.ids[r] for r in evidence[q].candidates]))
+            return matches, None, []
+
+        def as_matches(assignment: dict[int, int]) -> list[Match]:
+            """The association's match where the RANSAC agrees with it, a 'verified' one where not."""
+            out = []
+            for q, row in sorted(assignment.items()):
+                lid, o = self.ids[row], objects[q]
+                out.append(matched[q] if matched[q].landmark == lid else Match(
+                    query=q, landmark=lid, visual_sim=float(sims[q, row]),
+                    text_sim=None if o.text is None else float(self.descriptors[row] @ o.text), how="verified",
+                    candidates=[self.ids[r] for r in evidence[q].candidates]))
+            return out
+
+        out = as_matches(result.assignment)
         changed = sum(mt.how == "verified" for mt in out)
         diag["verification"] = {"inliers": result.inliers, "hypotheses": result.hypotheses, "changed": changed,
                                 "dropped": len(matches) - (len(out) - changed)}
-        return out, result.T_wc
+        if result.alternatives:
+            diag["verification"]["modes"] = 1 + len(result.alternatives)
+        return out, result.T_wc, [(as_matches(a.assignment), a.T_wc) for a in result.alternatives]
 
     def _hypotheses(self, matches: list[Match], objects: list[QueryObject], K: np.ndarray,
                     diag: dict[str, Any]) -> list[tuple[str, np.ndarray]]:

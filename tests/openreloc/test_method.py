@@ -14,6 +14,7 @@ from openreloc_bench import geometry
 from openreloc_bench.data.scene import Scene
 from openreloc_bench.errors import ConfigError, DataError
 from openreloc_bench.methods import Failure, PoseEstimate, QueryFrame, create_method
+from openreloc_bench.openreloc import method as method_module
 from openreloc_bench.openreloc.association import Match, QueryObject
 from openreloc_bench.openreloc.map import ObjectMap
 from openreloc_bench.openreloc.method import choose_hypothesis, verification_evidence
@@ -215,6 +216,22 @@ def test_the_verified_pose_is_a_hypothesis_unless_switched_off(map_dir: Path, hy
     frame = f"reference:{res.diagnostics['reference_frame']['index']}"
     sources = [h["source"] for h in res.diagnostics.get("hypotheses", [{"source": res.diagnostics["chosen"]}])]
     assert sources == ([frame, "verified"] if hypothesis else [frame])
+
+
+def test_further_verification_modes_compete_with_their_own_matches(map_dir: Path, monkeypatch) -> None:
+    q, _ = held_out_query()
+    one = localizer(map_dir, refinement={"max_iterations": 5}).localize(q)
+    assert "modes" not in one.diagnostics["verification"]
+    # make the last mode win, as render-and-compare would when it explains the query best
+    monkeypatch.setattr(method_module, "choose_hypothesis", lambda losses, explained, tie: len(losses) - 1)
+    res = localizer(map_dir, verification={"modes": 3}, refinement={"max_iterations": 5}).localize(q)
+    assert isinstance(res, PoseEstimate), res
+    modes = res.diagnostics["verification"]["modes"]
+    assert modes == 3  # this view has three distinct consistent sets of three
+    sources = [h["source"] for h in res.diagnostics["hypotheses"]]
+    assert sources[-modes:] == ["verified", "verified:2", "verified:3"] and res.diagnostics["chosen"] == "verified:3"
+    pairs = lambda r: {(mt["query_instance"], mt["landmark"]) for mt in r.diagnostics["matches"]}  # noqa: E731
+    assert pairs(res) != pairs(one)  # the winner's own matches are reported (and placed in the explanation)
 
 
 def test_text_cache_encodes_each_phrase_once() -> None:

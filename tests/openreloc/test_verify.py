@@ -93,6 +93,20 @@ def test_is_deterministic_per_seed(world: dict) -> None:
     assert a.assignment == b.assignment and np.array_equal(a.T_wc, b.T_wc)
 
 
+def test_further_modes_leave_the_best_as_it_was_and_are_distinct_consensus_sets(world: dict) -> None:
+    evidence, _ = _evidence(world, [0, 1, 2])
+    args = (evidence, world["centers"], world["extremes"], K)
+    one = verify_matches(*args, VerifyConfig())
+    many = verify_matches(*args, VerifyConfig(modes=4))
+    assert one is not None and many is not None and one.alternatives == []
+    assert many.assignment == one.assignment and np.allclose(many.T_wc, one.T_wc)
+    assert 1 <= len(many.alternatives) <= 3
+    seen = [many.assignment]
+    for alt in many.alternatives:
+        assert alt.inliers >= VerifyConfig().min_inliers and alt.assignment not in seen
+        seen.append(alt.assignment)
+
+
 def test_extreme_points_bound_a_box_from_any_view() -> None:
     rng = np.random.default_rng(1)
     pts = rng.uniform([-1, -0.5, 0], [1, 0.5, 0.8], size=(2000, 3))

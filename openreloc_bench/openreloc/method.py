@@ -273,14 +273,13 @@ class OpenReLoc:
         if refining or len(hypotheses) + len(alternatives) > 1:  # several without refinement: keep the best-fitting
             rcfg = cfg.refinement if refining else dataclasses.replace(cfg.refinement, max_iterations=0)
             with stage("refine" if refining else "retrieve"):
-                results = refine_poses([T for _, T in hypotheses], K, self._targets(matches, objects), rcfg,
-                                       seed=cfg.seed, occluders=occluders)
-                match_sets = [matches] * len(results)
-                for j, (alt_matches, T_alt) in enumerate(alternatives, start=2):  # its own matches: its own batch
-                    results += refine_poses([T_alt], K, self._targets(alt_matches, objects), rcfg, seed=cfg.seed,
-                                            occluders=occluders)
+                match_sets = [matches] * len(hypotheses)
+                for j, (alt_matches, T_alt) in enumerate(alternatives, start=2):  # with its own matches
                     hypotheses.append((f"verified:{j}", T_alt))
                     match_sets.append(alt_matches)
+                union, target_sets = _union(match_sets)
+                results = refine_poses([T for _, T in hypotheses], K, self._targets(union, objects), rcfg,
+                                       seed=cfg.seed, occluders=occluders, target_sets=target_sets)
             explained = [0.0] * len(results)
             if cfg.consistency.enabled:
                 with stage("compare"):
@@ -490,6 +489,16 @@ class TextCache(ImageTextEncoder):
 
     def config(self) -> dict[str, Any]:
         return self.inner.config()
+
+
+def _union(match_sets: list[list[Match]]) -> tuple[list[Match], list[list[int]]]:
+    """The distinct (query object, landmark) matches of all match sets, in order of first use, and each
+    set as indices into them: one refinement batch serves hypotheses with different matches."""
+    first: dict[tuple[int, int], Match] = {}
+    for mt in (mt for ms in match_sets for mt in ms):
+        first.setdefault((mt.query, mt.landmark), mt)
+    position = {key: i for i, key in enumerate(first)}
+    return list(first.values()), [[position[mt.query, mt.landmark] for mt in ms] for ms in match_sets]
 
 
 def _query_object(mk: ObjectMask, visual: np.ndarray, gamma: float) -> QueryObject:

@@ -14,7 +14,9 @@ distance transform that also returns the nearest pixel (``cv2.distanceTransformW
 step only gathers coordinates (ICP-style: the correspondence is fixed within a step and the residual
 ``p - nearest(p)`` is differentiable in ``p``). The backward path's nearest points come from
 batched matmuls (:func:`nearest_points`).
-All objects are padded into one batch so a step is a handful of tensor ops, and the gradient is
+All objects are padded into one batch so a step is a handful of tensor ops (hypotheses may align
+different match sets: each group of hypotheses with the same set keeps its own optimiser and stopping
+rules, and leaves the batch when it stops), and the gradient is
 written out by the chain rule (``_Problem.gradient``), since autograd's bookkeeping on such small
 ops cost as much as the arithmetic.
 
@@ -31,6 +33,7 @@ pose below the fixed-lr jitter and gives the early-stopping rule (stop after ``l
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -64,7 +67,8 @@ class RefineConfig:
     """Early stopping: stop once the learning rates have been halved this many times."""
     stall_patience: int = 10
     """Beyond the paper (speed): also stop once the lowest loss of any hypothesis (the one that would be
-    returned) has not improved by ``plateau_threshold`` (relative) for this many steps. The learning-rate
+    returned; among those aligning the same match set) has not improved by ``plateau_threshold``
+    (relative) for this many steps. The learning-rate
     rule above watches the *summed* loss, which far-off hypotheses keep lowering long after the best one
     has settled: measured on 60 gen2 multi-room queries, 200 -> 117 steps with identical recall. 0 = off."""
     stall_min_iterations: int = 40
@@ -280,13 +284,18 @@ class _Terms:
 class _Problem:
     """Padded, batched tensors of all objects and hypotheses; evaluates per-object losses at local poses.
 
+    Each hypothesis aligns its own set of targets: its objects ("slots", padded to the longest set)
+    index the targets, and padding (``real`` false) has no points and no pixels, so it adds nothing.
+
     Everything runs at the working resolution (``max_side``); ``delta`` and the reported losses are
     converted so that the outside world only sees full-resolution pixels.
     """
 
     def __init__(self, T_inits: list[np.ndarray], K: np.ndarray, targets: list[RefineTarget], cfg: RefineConfig,
-                 seed: int, occluders: np.ndarray | None):
+                 seed: int, occluders: np.ndarray | None, target_sets: list[list[int]] | None = None):
         rng = np.random.default_rng(seed)
+        if target_sets is None:
+            target_sets = [list(range(len(targets)))] * len(T_inits)
         H0, W0 = targets[0].mask.shape
         s = working_scale(H0, W0, cfg.max_side)
         masks = [resize_mask(t.mask, s) for t in targets]
@@ -298,16 +307,16 @@ class _Problem:
         self.H, self.W, self.cfg, self.scale = H, W, cfg, s
         self.unit = s * s  # full-resolution squared pixels -> working squared pixels
         occ = None if occluders is None or not cfg.occlusion_aware else resize_mask(occluders, s)
-        n_obj, n_hyp = len(targets), len(T_inits)
+        n_tgt, n_hyp = len(targets), len(T_inits)
         n_pts = max(min(cfg.max_points, len(t.points_w)) for t in targets)
         n_pix = max(max(1, min(cfg.max_mask_pixels, int(backward_pixels(m, cfg.backward_pixels).sum()))) for m in masks)
-        pts_w = np.zeros((n_obj, n_pts, 3), np.float64)
-        pts_valid = np.zeros((n_obj, n_pts), bool)
-        pix = np.full((n_obj, n_pix, 2), -_BIG, np.float32)
-        pix_valid = np.zeros((n_obj, n_pix), bool)
-        nearest = np.zeros((n_obj, H * W, 2), np.float32)
-        outside = np.ones((n_obj, H * W), bool)
-        counted = np.ones((n_obj, H * W), bool)
+        pts_w = np.zeros((n_tgt, n_pts, 3), np.float64)
+        pts_valid = np.zeros((n_tgt, n_pts), bool)
+        pix = np.full((n_tgt, n_pix, 2), -_BIG, np.float32)
+        pix_valid = np.zeros((n_tgt, n_pix), bool)
+        nearest = np.zeros((n_tgt, H * W, 2), np.float32)
+        outside = np.ones((n_tgt, H * W), bool)
+        counted = np.ones((n_tgt, H * W), bool)
         for i, (t, m) in enumerate(zip(targets, masks)):
             p = np.asarray(t.points_w, dtype=np.float64)
             if len(p) > cfg.max_points:
@@ -325,22 +334,45 @@ class _Problem:
                 outside[i] = ~m.reshape(-1)
             if occ is not None:
                 counted[i] = ~(occ & ~m).reshape(-1)  # pixels of *another* segment hide what is behind them
-        # points in each hypothesis' initial camera frame: (B, n_obj, n_pts, 3)
-        pts_c = np.stack([geometry.transform_points(geometry.invert(T), pts_w.reshape(-1, 3)).reshape(pts_w.shape)
-                          for T in T_inits])
+        # each hypothesis' objects ("slots", padded to the longest set): which target, and whether real
+        n_obj = max(len(ts) for ts in target_sets)
+        slots = np.zeros((n_hyp, n_obj), np.int64)
+        real = np.zeros((n_hyp, n_obj), bool)
+        for b, ts in enumerate(target_sets):
+            slots[b, : len(ts)], real[b, : len(ts)] = ts, True
+        # its objects' points in its initial camera frame: (B, n_obj, n_pts, 3)
+        pts_c = np.stack([geometry.transform_points(geometry.invert(T), pts_w[row].reshape(-1, 3)).reshape(n_obj, n_pts, 3)
+                          for T, row in zip(T_inits, slots)])
+        self.slots, self.real = slots, torch.from_numpy(real)
         self.pts = torch.from_numpy(pts_c.astype(np.float32))
-        self.pts_valid = torch.from_numpy(pts_valid).expand(n_hyp, -1, -1)
-        self.pix = torch.from_numpy(pix).expand(n_hyp, -1, -1, -1).reshape(n_hyp * n_obj, n_pix, 2)
-        self.pix_valid = torch.from_numpy(pix_valid)
-        self.n_pix = self.pix_valid.sum(1).clamp_min(1)
+        self.pts_valid = torch.from_numpy(pts_valid[slots] & real[..., None])
+        self.pix = torch.from_numpy(pix[slots]).reshape(n_hyp * n_obj, n_pix, 2)
+        self.pix_valid = torch.from_numpy(pix_valid[slots] & real[..., None])
+        self.n_pix = self.pix_valid.sum(-1).clamp_min(1)
         # per pixel of every object's image: nearest mask pixel (x, y), outside the mask, counted; one table
         # so that a step gathers once (``index_select`` on it: 3x faster than three advanced-indexing lookups)
         self.pixel_table = torch.from_numpy(np.concatenate(
             [nearest, outside[..., None], counted[..., None]], axis=-1).astype(np.float32)).reshape(-1, 4)
-        self.offset = (torch.arange(n_obj) * (H * W)).view(1, n_obj, 1)
+        self.offset = torch.from_numpy(slots * (H * W)).unsqueeze(-1)
         self.K = torch.tensor(scale_intrinsics(K, s), dtype=torch.float32)
         self.n_hyp, self.n_obj = n_hyp, n_obj
         self.nn_idx: torch.Tensor | None = None
+
+    def subset(self, rows: list[int]) -> _Problem:
+        """The problem of hypotheses ``rows`` only (the per-pixel tables are shared, not copied), with
+        their current backward correspondences: stopped hypotheses leave the batch instead of costing
+        every later step."""
+        sub = copy.copy(self)
+        idx = torch.tensor(rows, dtype=torch.long)
+        sub.slots, sub.real = self.slots[rows], self.real[idx]
+        sub.pts, sub.pts_valid = self.pts[idx], self.pts_valid[idx]
+        sub.pix_valid, sub.n_pix, sub.offset = self.pix_valid[idx], self.n_pix[idx], self.offset[idx]
+        per_hyp = (self.n_hyp, self.n_obj)
+        sub.pix = self.pix.view(*per_hyp, *self.pix.shape[1:])[idx].flatten(0, 1)
+        if self.nn_idx is not None:
+            sub.nn_idx = self.nn_idx.reshape(*per_hyp, *self.nn_idx.shape[1:])[idx].flatten(0, 1)
+        sub.n_hyp = len(rows)
+        return sub
 
     def losses(self, q: torch.Tensor, t: torch.Tensor, delta: float, refresh: bool = True) -> torch.Tensor:
         """(B, n_obj) dual-path loss of each object at the local poses (q (B, 4), t (B, 3)), in
@@ -430,18 +462,20 @@ def _quat_gradient(q: torch.Tensor, g_R: torch.Tensor) -> torch.Tensor:
     return (g - qn * (qn * g).sum(-1, keepdim=True)) / norm
 
 
-def _weights(obj_losses: torch.Tensor, cfg: RefineConfig, active: bool, unit: float) -> torch.Tensor:
+def _weights(obj_losses: torch.Tensor, real: torch.Tensor, cfg: RefineConfig, active: bool, unit: float) -> torch.Tensor:
     """(B, n_obj): 1 for objects within ``outlier_factor`` x their hypothesis' median loss (or below
-    ``outlier_min_loss``), 0 for outliers (moved objects); all ones while masking is not ``active``."""
-    losses = obj_losses.detach()
+    ``outlier_min_loss``), 0 for outliers (moved objects) and padding (``real`` false); while masking
+    is not ``active``, 1 for every real object."""
     if not active:
-        return torch.ones_like(losses)
-    # the median as torch.quantile(0.5) interpolates it, without quantile's overhead (0.3 ms per call)
-    ordered = losses.nan_to_num(_BIG).sort(dim=-1).values
-    n = ordered.shape[-1]
-    median = 0.5 * (ordered[..., (n - 1) // 2] + ordered[..., n // 2])
-    limit = torch.clamp(cfg.outlier_factor * median.unsqueeze(-1), min=cfg.outlier_min_loss * unit)
-    return (losses <= limit).float()
+        return real.float()
+    losses = obj_losses.detach()
+    # the median (of the real objects) as torch.quantile(0.5) interpolates it, without quantile's
+    # overhead (0.3 ms per call); padding sorts last
+    ordered = losses.nan_to_num(_BIG).masked_fill(~real, float("inf")).sort(dim=-1).values
+    n = real.sum(-1, keepdim=True)
+    median = 0.5 * (ordered.gather(-1, (n - 1) // 2) + ordered.gather(-1, n // 2))
+    limit = torch.clamp(cfg.outlier_factor * median, min=cfg.outlier_min_loss * unit)
+    return ((losses <= limit) & real).float()
 
 
 def _stalled(lowest: list[float], cfg: RefineConfig, it: int) -> bool:
@@ -469,11 +503,17 @@ def refine_poses(
     config: RefineConfig | None = None,
     seed: int = 0,
     occluders: np.ndarray | None = None,
+    target_sets: list[list[int]] | None = None,
 ) -> list[RefineResult]:
     """Refine every pose of ``T_inits`` (camera-to-world hypotheses) by minimising the dual-path 2D
     ICP loss over ``targets``, all hypotheses in one batch (each has its own parameters; Adam is
     per-coordinate, so they do not interact). ``occluders``: bool (H, W) union of all query segments
     (matched or not) for the occlusion-aware forward path.
+
+    ``target_sets[b]``: the indices of the targets hypothesis ``b`` aligns (default: all), so that
+    hypotheses with different matches share one batch: a step's fixed cost is most of its time, so
+    one batch is much cheaper than one per match set. Its object losses are keyed by landmark id,
+    so a set may hold each landmark once.
 
     Never raises on numerical trouble: a hypothesis whose loss or pose turns non-finite returns its
     initial pose with a reason.
@@ -484,14 +524,27 @@ def refine_poses(
     if not T_inits:
         raise ValueError("refine_poses needs at least one initial pose")
     T_inits = [geometry.check_pose(T, "initial pose") for T in T_inits]
+    if target_sets is not None:
+        _check_target_sets(target_sets, targets, len(T_inits))
     threads = torch.get_num_threads()
     torch.set_num_threads(1)  # a step is a few small ops: extra threads only add sync overhead (5-30x measured)
     try:
         if cfg.solver == "gauss-newton":
-            return _optimise_gn(T_inits, K, targets, cfg, seed, occluders)
-        return _optimise(T_inits, K, targets, cfg, seed, occluders)
+            return _optimise_gn(T_inits, K, targets, cfg, seed, occluders, target_sets)
+        return _optimise(T_inits, K, targets, cfg, seed, occluders, target_sets)
     finally:
         torch.set_num_threads(threads)
+
+
+def _check_target_sets(target_sets: list[list[int]], targets: list[RefineTarget], n_hyp: int) -> None:
+    """Raise ValueError unless there is one set per hypothesis, of valid indices and distinct landmarks."""
+    if len(target_sets) != n_hyp:
+        raise ValueError(f"{len(target_sets)} target sets for {n_hyp} initial poses")
+    for b, ts in enumerate(target_sets):
+        if not ts or not all(0 <= i < len(targets) for i in ts):
+            raise ValueError(f"target set {b} must hold indices of the {len(targets)} targets, at least one: {ts}")
+        if len({targets[i].landmark_id for i in ts}) != len(ts):
+            raise ValueError(f"target set {b} aligns a landmark twice: {[targets[i].landmark_id for i in ts]}")
 
 
 def refine_pose(
@@ -506,76 +559,133 @@ def refine_pose(
     return refine_poses([T_init], K, targets, config, seed, occluders)[0]
 
 
+@dataclass
+class _Group:
+    """Hypotheses that align the same targets, with their own Adam, learning-rate schedule and stopping
+    rules: they run as they would in a batch of their own (losses over different targets are not
+    comparable, so one set's settled loss must not stop another's refinement)."""
+
+    rows: slice
+    """Their rows in the problem (a group's hypotheses are contiguous)."""
+    q: torch.Tensor
+    t: torch.Tensor
+    opt: torch.optim.Adam
+    sched: torch.optim.lr_scheduler.ReduceLROnPlateau
+    lowest: list[float] = field(default_factory=list)
+    """Lowest best loss of its hypotheses, per step (stall rule)."""
+    stopped: int = 0
+    """The step it stopped after; 0 while it runs."""
+
+    @classmethod
+    def start(cls, rows: slice, cfg: RefineConfig) -> _Group:
+        n = rows.stop - rows.start
+        q, t = torch.tensor([[1.0, 0.0, 0.0, 0.0]] * n), torch.zeros(n, 3)
+        opt = torch.optim.Adam([{"params": [q], "lr": cfg.lr_rotation}, {"params": [t], "lr": cfg.lr_translation}])
+        sched = torch.optim.lr_scheduler.ReduceLROnPlateau(opt, factor=0.5, patience=cfg.plateau_patience,
+                                                           threshold=cfg.plateau_threshold)
+        return cls(rows, q, t, opt, sched)
+
+
+def _grouped(target_sets: list[list[int]] | None, n_hyp: int) -> tuple[list[int], list[slice]]:
+    """Hypotheses reordered so that those with the same target set are contiguous, and each set's rows."""
+    if target_sets is None:
+        return list(range(n_hyp)), [slice(0, n_hyp)]
+    keys = [tuple(ts) for ts in target_sets]
+    rank = {k: i for i, k in enumerate(dict.fromkeys(keys))}
+    order = sorted(range(n_hyp), key=lambda b: rank[keys[b]])
+    ends = np.cumsum(np.bincount([rank[k] for k in keys])).tolist()
+    return order, [slice(a, e) for a, e in zip([0, *ends[:-1]], ends)]
+
+
 def _optimise(T_inits: list[np.ndarray], K: np.ndarray, targets: list[RefineTarget], cfg: RefineConfig, seed: int,
-              occluders: np.ndarray | None) -> list[RefineResult]:
-    problem = _Problem(T_inits, K, targets, cfg, seed, occluders)
+              occluders: np.ndarray | None, target_sets: list[list[int]] | None) -> list[RefineResult]:
+    order, slices = _grouped(target_sets, len(T_inits))
+    T_inits = [T_inits[b] for b in order]
+    problem = _Problem(T_inits, K, targets, cfg, seed, occluders,
+                       None if target_sets is None else [target_sets[b] for b in order])
     B, unit = len(T_inits), problem.unit
-    q = torch.tensor([[1.0, 0.0, 0.0, 0.0]] * B)
-    t = torch.zeros(B, 3)
-    opt = torch.optim.Adam([{"params": [q], "lr": cfg.lr_rotation}, {"params": [t], "lr": cfg.lr_translation}])
-    sched = torch.optim.lr_scheduler.ReduceLROnPlateau(
-        opt, factor=0.5, patience=cfg.plateau_patience, threshold=cfg.plateau_threshold
-    )
+    groups = [_Group.start(rows, cfg) for rows in slices]
+    # state of the live batch (the running groups' hypotheses, in order); a group that stops leaves it
+    live, running, rows = problem, groups, list(range(B))
     best_loss = torch.full((B,), float("inf"))
-    best_q, best_t = q.detach().clone(), t.detach().clone()
-    initial = torch.full((B,), float("nan"))
+    best_q, best_t = torch.cat([g.q for g in groups]), torch.cat([g.t for g in groups])
     alive = torch.ones(B, dtype=torch.bool)
+    done_q, done_t = best_q.clone(), best_t.clone()  # every hypothesis' best, once its group has stopped
+    initial = torch.full((B,), float("nan"))
     why: list[str | None] = [None] * B
-    lowest: list[float] = []  # lowest best loss over the hypotheses, per step (stall rule)
     it = 0
     for it in range(1, cfg.max_iterations + 1):
+        q, t = torch.cat([g.q.detach() for g in running]), torch.cat([g.t.detach() for g in running])
         delta = _delta_at(cfg, it)
-        obj, terms = problem.evaluate(q, t, delta, refresh=(it - 1) % max(1, cfg.correspondence_every) == 0)
-        w = _weights(obj, cfg, it > cfg.outlier_warmup, unit)
+        obj, terms = live.evaluate(q, t, delta, refresh=(it - 1) % max(1, cfg.correspondence_every) == 0)
+        w = _weights(obj, live.real, cfg, it > cfg.outlier_warmup, unit)
         coef = w / w.sum(-1, keepdim=True).clamp_min(1.0)
-        value = (obj * coef).sum(-1)  # (B,)
+        value = (obj * coef).sum(-1)  # (live rows,)
         if it == 1:
             initial = value.clone()
-        finite = torch.isfinite(value)
-        for b in torch.nonzero(alive & ~finite).flatten().tolist():
-            alive[b], why[b] = False, "loss became non-finite"
-        if not alive.any():
-            break
+        for k in torch.nonzero(alive & ~torch.isfinite(value)).flatten().tolist():
+            alive[k], why[rows[k]] = False, "loss became non-finite"
         annealed = it > cfg.anneal_steps or cfg.huber_delta_start <= cfg.huber_delta
         improved = alive & (value < best_loss) if annealed else alive  # best only counts at the final delta
         best_loss = torch.where(improved, value, best_loss)
-        best_q = torch.where(improved.unsqueeze(-1), q.detach(), best_q)
-        best_t = torch.where(improved.unsqueeze(-1), t.detach(), best_t)
-        q.grad, t.grad = problem.gradient(q, t, terms, torch.where(alive.unsqueeze(-1), coef, 0.0))
-        bad = alive & ~(torch.isfinite(q.grad).all(-1) & torch.isfinite(t.grad).all(-1))
-        for b in torch.nonzero(bad).flatten().tolist():
-            alive[b], why[b] = False, "non-finite gradient"
-        q.grad = torch.where(alive.unsqueeze(-1), q.grad, 0.0)
-        t.grad = torch.where(alive.unsqueeze(-1), t.grad, 0.0)
-        opt.step()
-        if annealed:
-            sched.step(float(value[alive].sum()) if alive.any() else 0.0)
-        if opt.param_groups[0]["lr"] < cfg.lr_rotation * 0.5**cfg.lr_reductions * 1.0001:
-            break
-        lowest.append(float(best_loss.min()))
-        if _stalled(lowest, cfg, it):
-            break
-    return _results(problem, T_inits, targets, best_q, best_t, initial, why, it)
+        best_q = torch.where(improved.unsqueeze(-1), q, best_q)
+        best_t = torch.where(improved.unsqueeze(-1), t, best_t)
+        g_q, g_t = live.gradient(q, t, terms, torch.where(alive.unsqueeze(-1), coef, 0.0))
+        for k in torch.nonzero(alive & ~(torch.isfinite(g_q).all(-1) & torch.isfinite(g_t).all(-1))).flatten().tolist():
+            alive[k], why[rows[k]] = False, "non-finite gradient"
+        g_q = torch.where(alive.unsqueeze(-1), g_q, 0.0)
+        g_t = torch.where(alive.unsqueeze(-1), g_t, 0.0)
+        keep: list[int] = []  # live rows of the groups that go on
+        start = 0
+        for g in running:
+            mine = slice(start, start + g.rows.stop - g.rows.start)
+            start = mine.stop
+            g.q.grad, g.t.grad = g_q[mine], g_t[mine]
+            g.opt.step()
+            on = alive[mine]
+            if annealed:
+                g.sched.step(float(value[mine][on].sum()) if on.any() else 0.0)
+            g.lowest.append(float(best_loss[mine].min()))
+            if (not on.any() or _stalled(g.lowest, cfg, it)
+                    or g.opt.param_groups[0]["lr"] < cfg.lr_rotation * 0.5**cfg.lr_reductions * 1.0001):
+                g.stopped = it
+                done_q[g.rows], done_t[g.rows] = best_q[mine], best_t[mine]
+            else:
+                keep += range(mine.start, mine.stop)
+        if len(keep) < len(rows):
+            running = [g for g in running if not g.stopped]
+            if not running:
+                break
+            live, rows = live.subset(keep), [rows[k] for k in keep]
+            best_loss, best_q, best_t, alive = best_loss[keep], best_q[keep], best_t[keep], alive[keep]
+    done_q[rows], done_t[rows] = best_q, best_t  # the live batch's (the step cap stopped it)
+    iterations = [0] * B
+    for g in groups:
+        iterations[g.rows] = [g.stopped or it] * (g.rows.stop - g.rows.start)
+    results = _results(problem, T_inits, targets, done_q, done_t, initial, why, iterations)
+    return [results[order.index(b)] for b in range(B)]
 
 
 def _results(problem: _Problem, T_inits: list[np.ndarray], targets: list[RefineTarget], best_q: torch.Tensor,
-             best_t: torch.Tensor, initial: torch.Tensor, why: list[str | None], it: int) -> list[RefineResult]:
+             best_t: torch.Tensor, initial: torch.Tensor, why: list[str | None],
+             iterations: list[int]) -> list[RefineResult]:
     """Score the final local poses with the (shared) loss and express them as camera-to-world poses."""
     cfg, unit = problem.cfg, problem.unit
     with torch.no_grad():
         obj = problem.losses(best_q, best_t, cfg.huber_delta)
-        w = _weights(obj, cfg, True, unit)
+        w = _weights(obj, problem.real, cfg, True, unit)
         final = (obj * w).sum(-1) / w.sum(-1).clamp_min(1.0)
-    ids = [tg.landmark_id for tg in targets]
     out = []
     for b, T_init in enumerate(T_inits):
+        n = int(problem.real[b].sum())  # real slots come first
+        ids = [targets[i].landmark_id for i in problem.slots[b, :n]]
         qn = best_q[b].numpy().astype(np.float64)
         tn = best_t[b].numpy().astype(np.float64)
         if why[b] is None and not (np.all(np.isfinite(qn)) and np.linalg.norm(qn) > 1e-8 and np.all(np.isfinite(tn))
                                    and np.isfinite(float(final[b]))):
             why[b] = "pose became non-finite"
         if why[b] is not None:
-            out.append(RefineResult(T_init.copy(), float("inf"), float(initial[b]) / unit, iterations=it,
+            out.append(RefineResult(T_init.copy(), float("inf"), float(initial[b]) / unit, iterations=iterations[b],
                                     reason=f"refinement diverged: {why[b]}"))
             continue
         delta_T = geometry.qt_to_pose(qn / np.linalg.norm(qn), tn)
@@ -583,9 +693,9 @@ def _results(problem: _Problem, T_inits: list[np.ndarray], targets: list[RefineT
             T_wc=geometry.compose(T_init, delta_T),
             loss=float(final[b]) / unit,
             initial_loss=float(initial[b]) / unit,
-            object_losses={i: float(v) / unit for i, v in zip(ids, obj[b].tolist())},
-            outliers=[i for i, keep in zip(ids, w[b].tolist()) if keep == 0.0],
-            iterations=it,
+            object_losses={i: float(v) / unit for i, v in zip(ids, obj[b, :n].tolist())},
+            outliers=[i for i, keep in zip(ids, w[b, :n].tolist()) if keep == 0.0],
+            iterations=iterations[b],
         ))
     return out
 
@@ -617,9 +727,10 @@ class _GaussNewtonTerms:
         n = problem.n_obj
         self.X0 = problem.pts[b].numpy().astype(np.float64)  # (n_obj, n_pts, 3)
         self.valid = problem.pts_valid[b].numpy()
-        self.pix = problem.pix[:n].numpy().astype(np.float64)  # (n_obj, n_pix, 2)
-        self.pix_valid = problem.pix_valid.numpy()
+        self.pix = problem.pix[b * n : (b + 1) * n].numpy().astype(np.float64)  # (n_obj, n_pix, 2)
+        self.pix_valid = problem.pix_valid[b].numpy()
         self.n_pix = np.maximum(self.pix_valid.sum(1), 1)
+        self.offset = problem.offset[b].numpy()  # (n_obj, 1): where each object's pixel table starts
         table = problem.pixel_table.numpy()
         self.nearest = table[:, :2].astype(np.float64)
         self.outside = table[:, 2] > 0
@@ -642,7 +753,7 @@ class _GaussNewtonTerms:
         uv = np.stack([self.K[0, 0] * X[..., 0] / zs + self.K[0, 2], self.K[1, 1] * X[..., 1] / zs + self.K[1, 2]], -1)
         ui, vi = np.rint(uv[..., 0]).astype(np.int64), np.rint(uv[..., 1]).astype(np.int64)
         in_img = front & (ui >= 0) & (ui < self.W) & (vi >= 0) & (vi < self.H)
-        flat = np.clip(vi, 0, self.H - 1) * self.W + np.clip(ui, 0, self.W - 1) + (np.arange(self.n_obj) * self.H * self.W)[:, None]
+        flat = np.clip(vi, 0, self.H - 1) * self.W + np.clip(ui, 0, self.W - 1) + self.offset
         use = in_img & self.counted[flat]
         r_f = (uv - self.nearest[flat]) * self.outside[flat][..., None]
         rho_f, w_f = _huber_irls((r_f**2).sum(-1), self.delta)
@@ -699,20 +810,21 @@ def _se3_exp(xi: np.ndarray) -> np.ndarray:
 
 
 def _optimise_gn(T_inits: list[np.ndarray], K: np.ndarray, targets: list[RefineTarget], cfg: RefineConfig, seed: int,
-                 occluders: np.ndarray | None) -> list[RefineResult]:
+                 occluders: np.ndarray | None, target_sets: list[list[int]] | None) -> list[RefineResult]:
     """Levenberg-Marquardt on the IRLS-linearised dual-path loss, one hypothesis at a time."""
-    problem = _Problem(T_inits, K, targets, cfg, seed, occluders)
+    problem = _Problem(T_inits, K, targets, cfg, seed, occluders, target_sets)
     delta = cfg.huber_delta * problem.scale
     n_hyp = len(T_inits)
     best_q = torch.zeros(n_hyp, 4)
     best_t = torch.zeros(n_hyp, 3)
     initial = torch.zeros(n_hyp)
     why: list[str | None] = [None] * n_hyp
-    max_it = 0
+    iterations = [0] * n_hyp
     for b in range(n_hyp):
         terms = _GaussNewtonTerms(problem, b, delta)
         M = np.eye(4)
-        weights = np.ones(problem.n_obj)
+        real = problem.real[b].numpy()
+        weights = real.astype(float)
         losses, Hm, g = terms.evaluate(M, weights, normal=True)
         loss = float(losses @ weights / weights.sum())
         initial[b] = loss
@@ -742,15 +854,15 @@ def _optimise_gn(T_inits: list[np.ndarray], K: np.ndarray, targets: list[RefineT
                 # moved objects: once converged on all objects, mask those far above the median and go on
                 # (masking earlier would drop objects that only look bad because the start is off)
                 masking = True
-                limit = max(cfg.outlier_factor * np.median(new_losses), cfg.outlier_min_loss * problem.unit)
-                weights = (new_losses <= limit).astype(float)
-                if weights.all():
+                limit = max(cfg.outlier_factor * np.median(new_losses[real]), cfg.outlier_min_loss * problem.unit)
+                weights = ((new_losses <= limit) & real).astype(float)
+                if weights.sum() == real.sum():
                     break
             losses, Hm, g = terms.evaluate(M, weights, normal=True)
             loss = float(losses @ weights / max(weights.sum(), 1.0))
-        max_it = max(max_it, it)
+        iterations[b] = it
         # the torch loss parametrises camera points as R^T (p - t): R = R_M^T, t = -R_M^T t_M
         R = M[:3, :3].T
         best_q[b] = torch.from_numpy(geometry.rotmat_to_quat(R).astype(np.float32))
         best_t[b] = torch.from_numpy((-R @ M[:3, 3]).astype(np.float32))
-    return _results(problem, T_inits, targets, best_q, best_t, initial, why, max_it)
+    return _results(problem, T_inits, targets, best_q, best_t, initial, why, iterations)

@@ -232,6 +232,20 @@ def test_further_verification_modes_compete_with_their_own_matches(map_dir: Path
     assert sources[-modes:] == ["verified", "verified:2", "verified:3"] and res.diagnostics["chosen"] == "verified:3"
     pairs = lambda r: {(mt["query_instance"], mt["landmark"]) for mt in r.diagnostics["matches"]}  # noqa: E731
     assert pairs(res) != pairs(one)  # the winner's own matches are reported (and placed in the explanation)
+    # ... and it was refined against them, in the same batch as the others
+    assert set(res.diagnostics["refine"]["object_losses"]) == {str(mt["landmark"]) for mt in res.diagnostics["matches"]}
+
+
+def test_union_of_match_sets_holds_each_pair_once() -> None:
+    from openreloc_bench.openreloc.method import _union
+
+    def match(q: int, lid: int) -> Match:
+        return Match(query=q, landmark=lid, visual_sim=0.5, text_sim=None, how="verified")
+
+    main = [match(0, 10), match(1, 11)]
+    union, sets = _union([main, main, [match(0, 12), match(1, 11)], [match(2, 10)]])
+    assert [(mt.query, mt.landmark) for mt in union] == [(0, 10), (1, 11), (0, 12), (2, 10)]
+    assert sets == [[0, 1], [0, 1], [2, 1], [3]]
 
 
 def test_text_cache_encodes_each_phrase_once() -> None:

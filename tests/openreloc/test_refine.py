@@ -163,6 +163,38 @@ def test_batched_hypotheses_match_separate_runs() -> None:
         assert np.allclose(single.T_wc, b.T_wc, atol=1e-4) and single.loss == pytest.approx(b.loss, rel=1e-3)
 
 
+@pytest.mark.parametrize("solver", ["adam", "gauss-newton"])
+def test_target_sets_match_separate_batches(solver: str) -> None:
+    """Hypotheses with their own match sets in one batch end where their own batches would, stopping
+    rules included. One set matches a landmark to another object's mask, so the two sets share a
+    landmark id with different masks, and their lengths differ (padding); the sets interleave."""
+    targets = targets_at(T_GT)
+    wrong = RefineTarget(targets[0].landmark_id, targets[0].points_w, targets[1].mask)
+    union = [*targets, wrong]
+    right, mixed = list(range(len(targets))), [len(targets), *range(2, len(targets))]
+    starts = [perturbed(0, 0.03, 0.1), perturbed(1, 0.03, 0.1), perturbed(2, 0.03, 0.1)]
+    sets = [right, mixed, right]
+    cfg = RefineConfig(solver=solver, max_points=5000, max_mask_pixels=100_000)  # no subsampling: it draws per target
+    batched = refine_poses(starts, K, union, cfg, target_sets=sets)
+    for ts in (right, mixed):
+        rows = [b for b, s in enumerate(sets) if s == ts]
+        own = refine_poses([starts[b] for b in rows], K, [union[i] for i in ts], cfg)
+        for b, single in zip(rows, own):
+            res = batched[b]
+            assert np.allclose(single.T_wc, res.T_wc, atol=1e-4) and single.loss == pytest.approx(res.loss, rel=1e-3)
+            assert res.object_losses == pytest.approx(single.object_losses, rel=1e-3)
+            assert res.outliers == single.outliers and res.iterations == single.iterations
+    assert batched[1].loss > max(batched[0].loss, batched[2].loss)  # the wrong match shows
+    if solver == "adam":
+        assert batched[1].outliers == [targets[0].landmark_id] and batched[0].iterations != batched[1].iterations
+
+
+@pytest.mark.parametrize("target_sets", [[[0]], [[0], []], [[0], [0, 99]], [[0], [0, 0]]])
+def test_invalid_target_sets_are_rejected(target_sets: list[list[int]]) -> None:
+    with pytest.raises(ValueError, match="target set"):
+        refine_poses([T_GT, T_GT], K, targets_at(T_GT), RefineConfig(max_iterations=1), target_sets=target_sets)
+
+
 def test_reduced_resolution_reports_full_resolution_losses() -> None:
     """The same pose scored at full and half resolution: losses agree in full-resolution pixels."""
     targets = targets_at(T_GT)
@@ -213,18 +245,23 @@ def test_gauss_newton_minimises_the_same_loss() -> None:
 
 
 
-@pytest.mark.parametrize(("occlusion_aware", "refresh", "with_outlier"),
-                         [(False, True, False), (True, True, False), (False, False, True)])
-def test_hand_written_gradient_equals_autograd(occlusion_aware: bool, refresh: bool, with_outlier: bool) -> None:
+@pytest.mark.parametrize(("occlusion_aware", "refresh", "with_outlier", "padded"),
+                         [(False, True, False, False), (True, True, False, False), (False, False, True, False),
+                          (False, True, False, True)])
+def test_hand_written_gradient_equals_autograd(occlusion_aware: bool, refresh: bool, with_outlier: bool,
+                                               padded: bool) -> None:
     """The optimiser's chain-rule gradient against autograd through the same loss, at poses where
-    points fall outside masks, outside the image and (for the far start) behind the camera."""
+    points fall outside masks, outside the image and (for the far start) behind the camera; ``padded``:
+    the hypotheses align target sets of different lengths."""
     from openreloc_bench.openreloc.refine import _Problem
 
     _, _, inst = render(ROOM, K, T_GT, HW)
     targets = targets_at(T_GT)
     starts = [perturbed(0, 0.05, 0.2), perturbed(1, 0.1, 0.5), perturbed(2, 0.3, 2.5)]
     cfg = RefineConfig(occlusion_aware=occlusion_aware)
-    problem = _Problem(starts, K, targets, cfg, seed=0, occluders=inst > 0)
+    n = len(targets)
+    sets = [list(range(n)), list(range(n - 2)), list(range(1, n))] if padded else None
+    problem = _Problem(starts, K, targets, cfg, seed=0, occluders=inst > 0, target_sets=sets)
     rng = np.random.default_rng(3)
     q = torch.tensor(np.c_[np.ones(3), rng.normal(0, 0.05, (3, 3))] * [[1.3], [0.8], [1.0]], dtype=torch.float32)
     t = torch.tensor(rng.normal(0, 0.1, (3, 3)), dtype=torch.float32)

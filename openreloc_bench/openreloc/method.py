@@ -362,7 +362,10 @@ class OpenReLoc:
         matched = {mt.query: mt for mt in matches}
         sims = np.stack([o.visual for o in objects]) @ self.descriptors.T
         evidence = verification_evidence(objects, matched, sims, self.ids, invalid, cfg.verification.candidates)
-        result = verify_matches(evidence, self.centers, self.extremes, K, cfg.verification, seed=cfg.seed)
+        vcfg = cfg.verification
+        if not vcfg.hypothesis or cfg.no_coarse:  # further modes come only with the verified pose: skip their search
+            vcfg = dataclasses.replace(vcfg, modes=1)
+        result = verify_matches(evidence, self.centers, self.extremes, K, vcfg, seed=cfg.seed)
         if result is None:
             diag["verification"] = {"inliers": 0, "kept": "association"}
             return matches, None, []

@@ -55,18 +55,17 @@ class VerifyConfig:
     points R@50 over 4)."""
     refits: int = 2
     """Local optimisation rounds: re-solve PnP on the inliers and re-collect them."""
-    modes: int = 1
+    modes: int = 3
     """Poses kept from the RANSAC, each with its own inliers: the best, then the next best-scoring whose
     camera is at least ``mode_separation`` from every one tried and whose inliers differ from every kept
-    one's. With ``hypothesis``, each is refined against its own matches and competes in the
-    render-and-compare choice. It adds coverage where the best consensus is a wrong set of look-alikes:
-    on 71 failed multi-room queries, the best-scoring sampled pose was within 1 m of the truth in 10%,
-    one of the best two modes in 25%, one of the best three in 31%. All 300 multi-room queries (gen2,
-    oracle masks), R@50 / R@25: 76.0 / 67.0 with 1, 77.7 / 68.7 with 2, 78.7 / 69.3 with 3 (each mode
-    refined in a batch of its own). The modes now share the refinement batch with the coarse hypotheses
-    (:func:`~.refine.refine_poses`' ``target_sets``): with 3, 78.0 / 69.3 (subsampling differs), and the
-    median query takes 0.48 s instead of 0.59 s in separate batches and 0.34 s with 1 (two queries at a
-    time on the 2-core machine)."""
+    one's. With ``hypothesis``, each is refined against its own matches (in the coarse hypotheses'
+    batch: :func:`~.refine.refine_poses`' ``target_sets``) and competes in the render-and-compare
+    choice. It adds coverage where the best consensus is a wrong set of look-alikes: on 71 failed
+    multi-room queries, the best-scoring sampled pose was within 1 m of the truth in 10%, one of the
+    best two modes in 25%, one of the best three in 31%. All 300 multi-room queries (gen2, oracle
+    masks), R@50 / R@25: 76.0 / 67.0 with 1, 78.0 / 69.3 with 3 and with 5; median query 0.34, 0.48 and
+    0.54 s (two queries at a time on the 2-core machine; 0.59 s with 3 when each mode had a batch of
+    its own). 1 = the best consensus only."""
     mode_separation: float = 1.0
     """Metres between the camera centres of two kept modes (a closer pose refines into the same one)."""
     hypothesis: bool = True

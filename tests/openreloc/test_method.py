@@ -215,12 +215,13 @@ def test_the_verified_pose_is_a_hypothesis_unless_switched_off(map_dir: Path, hy
     assert res.diagnostics["verification"]["inliers"] >= 3  # verified matches are used either way
     frame = f"reference:{res.diagnostics['reference_frame']['index']}"
     sources = [h["source"] for h in res.diagnostics.get("hypotheses", [{"source": res.diagnostics["chosen"]}])]
-    assert sources == ([frame, "verified"] if hypothesis else [frame])
+    assert sources == ([frame, "verified", "verified:2", "verified:3"] if hypothesis else [frame])  # 3 modes here
+    assert ("modes" in res.diagnostics["verification"]) == hypothesis  # without the pose, no search for further ones
 
 
 def test_further_verification_modes_compete_with_their_own_matches(map_dir: Path, monkeypatch) -> None:
     q, _ = held_out_query()
-    one = localizer(map_dir, refinement={"max_iterations": 5}).localize(q)
+    one = localizer(map_dir, verification={"modes": 1}, refinement={"max_iterations": 5}).localize(q)
     assert "modes" not in one.diagnostics["verification"]
     # make the last mode win, as render-and-compare would when it explains the query best
     monkeypatch.setattr(method_module, "choose_hypothesis", lambda losses, explained, tie: len(losses) - 1)

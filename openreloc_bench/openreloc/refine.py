@@ -606,7 +606,7 @@ def _optimise(T_inits: list[np.ndarray], K: np.ndarray, targets: list[RefineTarg
     B, unit = len(T_inits), problem.unit
     groups = [_Group.start(rows, cfg) for rows in slices]
     # state of the live batch (the running groups' hypotheses, in order); a group that stops leaves it
-    live, running, rows = problem, groups, list(range(B))
+    live, running, live_rows = problem, groups, list(range(B))
     best_loss = torch.full((B,), float("inf"))
     best_q, best_t = torch.cat([g.q for g in groups]), torch.cat([g.t for g in groups])
     alive = torch.ones(B, dtype=torch.bool)
@@ -624,7 +624,7 @@ def _optimise(T_inits: list[np.ndarray], K: np.ndarray, targets: list[RefineTarg
         if it == 1:
             initial = value.clone()
         for k in torch.nonzero(alive & ~torch.isfinite(value)).flatten().tolist():
-            alive[k], why[rows[k]] = False, "loss became non-finite"
+            alive[k], why[live_rows[k]] = False, "loss became non-finite"
         annealed = it > cfg.anneal_steps or cfg.huber_delta_start <= cfg.huber_delta
         improved = alive & (value < best_loss) if annealed else alive  # best only counts at the final delta
         best_loss = torch.where(improved, value, best_loss)
@@ -632,7 +632,7 @@ def _optimise(T_inits: list[np.ndarray], K: np.ndarray, targets: list[RefineTarg
         best_t = torch.where(improved.unsqueeze(-1), t, best_t)
         g_q, g_t = live.gradient(q, t, terms, torch.where(alive.unsqueeze(-1), coef, 0.0))
         for k in torch.nonzero(alive & ~(torch.isfinite(g_q).all(-1) & torch.isfinite(g_t).all(-1))).flatten().tolist():
-            alive[k], why[rows[k]] = False, "non-finite gradient"
+            alive[k], why[live_rows[k]] = False, "non-finite gradient"
         g_q = torch.where(alive.unsqueeze(-1), g_q, 0.0)
         g_t = torch.where(alive.unsqueeze(-1), g_t, 0.0)
         keep: list[int] = []  # live rows of the groups that go on
@@ -652,13 +652,13 @@ def _optimise(T_inits: list[np.ndarray], K: np.ndarray, targets: list[RefineTarg
                 done_q[g.rows], done_t[g.rows] = best_q[mine], best_t[mine]
             else:
                 keep += range(mine.start, mine.stop)
-        if len(keep) < len(rows):
+        if len(keep) < len(live_rows):
             running = [g for g in running if not g.stopped]
             if not running:
                 break
-            live, rows = live.subset(keep), [rows[k] for k in keep]
+            live, live_rows = live.subset(keep), [live_rows[k] for k in keep]
             best_loss, best_q, best_t, alive = best_loss[keep], best_q[keep], best_t[keep], alive[keep]
-    done_q[rows], done_t[rows] = best_q, best_t  # the live batch's (the step cap stopped it)
+    done_q[live_rows], done_t[live_rows] = best_q, best_t  # the live batch's (the step cap stopped it)
     iterations = [0] * B
     for g in groups:
         iterations[g.rows] = [g.stopped or it] * (g.rows.stop - g.rows.start)

@@ -4,8 +4,11 @@ A suite YAML lists scenes; each scene is a :class:`SceneSpec` (name, kind, seed,
 Everything the generator does is a deterministic function of the spec, so :func:`spec_hash` identifies a
 scene's content (it is recorded in ``scene.json``).
 
-Seeds: suites use seeds below :data:`TRAINING_SEED_MIN`; seeds at or above it are reserved for scenes
-that train encoders (e.g. object-crop fine-tuning), so no benchmark scene is ever seen in training.
+Seeds come in three disjoint ranges, so that no benchmark scene is ever trained on or used to choose a
+model: benchmark suites use seeds below :data:`TRAINING_SEED_MIN`; seeds from it up to
+:data:`VALIDATION_SEED_MIN` are reserved for scenes that train encoders (object-crop training); seeds
+from :data:`VALIDATION_SEED_MIN` on belong to validation suites (``purpose: validation``), on which
+models and recipes are selected.
 """
 
 from __future__ import annotations
@@ -27,7 +30,13 @@ gen2: rooms stay connected (pendant lights and one-cell gaps no longer cut corri
 drawn only from the walkable region the mapping sequence covers."""
 
 TRAINING_SEED_MIN = 1_000_000
-"""Seeds >= this are reserved for encoder TRAINING scenes; suite validation rejects them."""
+"""Seeds >= this are reserved for encoder TRAINING scenes (below :data:`VALIDATION_SEED_MIN`); benchmark
+suites reject them."""
+
+VALIDATION_SEED_MIN = 10_000_000
+"""Seeds >= this are for VALIDATION suites only: selecting encoder weights, recipes or thresholds by
+relocalization on the suites themselves would tune to the test set, and held-out crop retrieval does not
+predict relocalization (see ``TrainConfig.epochs``)."""
 
 MIN_ROOM_SIDE_M = 2.0
 """Smallest room side that still fits furniture and a camera path."""
@@ -147,6 +156,9 @@ class SuiteSpec:
 
     name: str = "suite"
     """Suite name (used in leaderboards)."""
+    purpose: Literal["benchmark", "validation"] = "benchmark"
+    """"benchmark": reported results, seeds below :data:`TRAINING_SEED_MIN`. "validation": model
+    selection, seeds from :data:`VALIDATION_SEED_MIN` on."""
     description: str = ""
     """What the suite is for."""
     defaults: dict = field(default_factory=dict)
@@ -161,10 +173,12 @@ class SuiteSpec:
             if not isinstance(raw, dict):
                 raise ConfigError(f"'scenes[{i}]': expected a mapping")
             spec = config.from_dict(SceneSpec, {**self.defaults, **raw}, where=f"scenes[{i}]")
-            if spec.seed >= TRAINING_SEED_MIN:
-                raise ConfigError(
-                    f"'scenes[{i}].seed' = {spec.seed} is in the range reserved for encoder training (>= {TRAINING_SEED_MIN})"
-                )
+            if self.purpose == "benchmark" and spec.seed >= TRAINING_SEED_MIN:
+                raise ConfigError(f"'scenes[{i}].seed' = {spec.seed}: a benchmark suite's seeds must be below "
+                                  f"{TRAINING_SEED_MIN} (higher ones are reserved for training and validation)")
+            if self.purpose == "validation" and spec.seed < VALIDATION_SEED_MIN:
+                raise ConfigError(f"'scenes[{i}].seed' = {spec.seed}: a validation suite's seeds must be at least "
+                                  f"{VALIDATION_SEED_MIN} (lower ones are benchmark or training scenes)")
             specs.append(spec)
         names = [s.name for s in specs]
         dupes = sorted({x for x in names if names.count(x) > 1})

@@ -74,13 +74,14 @@ def _generate(root: Path, prefix: str, seeds: list[int], args: argparse.Namespac
     from openreloc_bench import config as cfgmod
 
     try:
-        from generators.spec import TRAINING_SEED_MIN, SceneSpec
+        from generators.spec import TRAINING_SEED_MIN, VALIDATION_SEED_MIN, SceneSpec
     except ImportError as e:
         raise ConfigError(f"the scene generator is not available ({e}); pass --data with train/ and eval/ scenes") from None
     specs = []
     for i, seed in enumerate(seeds):
-        if seed < TRAINING_SEED_MIN:
-            raise ConfigError(f"training scene seed {seed} is below TRAINING_SEED_MIN ({TRAINING_SEED_MIN})")
+        if not TRAINING_SEED_MIN <= seed < VALIDATION_SEED_MIN:
+            raise ConfigError(f"training scene seed {seed} is outside the training range [{TRAINING_SEED_MIN}, "
+                              f"{VALIDATION_SEED_MIN}): lower --seed or --scenes / --eval-scenes")
         kind = "multi-room" if i % 3 == 2 else "single-room"
         specs.append(SceneSpec(
             name=f"{prefix}-{seed}", kind=kind, seed=seed, rooms=3 if kind == "multi-room" else 1,

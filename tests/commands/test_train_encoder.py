@@ -39,6 +39,13 @@ def test_train_encoder_bad_arguments(tmp_path: Path, capsys: pytest.CaptureFixtu
     assert "must be >= 1" in capsys.readouterr().err
 
 
+def test_training_scenes_stay_out_of_the_validation_range(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # --seed 9000: the scene seeds would start at TRAINING_SEED_MIN + 9,000,000 = VALIDATION_SEED_MIN
+    assert main(["train-encoder", "--out", str(tmp_path / "w"), "--seed", "9000", "--scenes", "1", "--eval-scenes", "1"]) == 2
+    assert "outside the training range" in capsys.readouterr().err
+    assert not (tmp_path / "w" / "scenes" / "train").exists()  # refused before generating anything
+
+
 def test_defaults_are_the_recipe_of_the_shipped_weights() -> None:
     """``train-encoder --out DIR`` must retrain what ships, so its defaults follow the weights' config."""
     import argparse

@@ -7,25 +7,50 @@ from pathlib import Path
 import pytest
 import yaml
 
-from generators.spec import TRAINING_SEED_MIN, SceneSpec, load_suite, spec_hash
+from generators.spec import TRAINING_SEED_MIN, VALIDATION_SEED_MIN, SceneSpec, load_suite, spec_hash
 from openreloc_bench import config
 from openreloc_bench.errors import ConfigError
 
 SCENES = Path(__file__).resolve().parents[2] / "scenes"
 
 
-@pytest.mark.parametrize("suite", ["smoke", "single-room", "multi-room", "multi-floor"])
+@pytest.mark.parametrize("suite", ["smoke", "single-room", "multi-room", "multi-floor", "validation"])
 def test_shipped_suites_load(suite: str) -> None:
-    specs = load_suite(SCENES / f"{suite}.yaml").scene_specs()
-    assert specs and all(s.seed < TRAINING_SEED_MIN for s in specs)
+    loaded = load_suite(SCENES / f"{suite}.yaml")
+    specs = loaded.scene_specs()
+    assert specs and loaded.purpose == ("validation" if suite == "validation" else "benchmark")
+    if suite == "validation":
+        assert all(s.seed >= VALIDATION_SEED_MIN for s in specs)
+    else:
+        assert all(s.seed < TRAINING_SEED_MIN for s in specs)
     if suite != "smoke":
         assert all((s.width, s.height) == (640, 480) for s in specs)
 
 
-def _write(tmp_path: Path, scene: dict, defaults: dict | None = None) -> Path:
+def _write(tmp_path: Path, scene: dict, defaults: dict | None = None, purpose: str = "benchmark") -> Path:
     p = tmp_path / "suite.yaml"
-    p.write_text(yaml.safe_dump({"name": "t", "defaults": defaults or {}, "scenes": [scene]}))
+    p.write_text(yaml.safe_dump({"name": "t", "purpose": purpose, "defaults": defaults or {}, "scenes": [scene]}))
     return p
+
+
+@pytest.mark.parametrize(("purpose", "seed", "ok"), [
+    ("benchmark", 5, True), ("benchmark", TRAINING_SEED_MIN, False), ("benchmark", VALIDATION_SEED_MIN, False),
+    ("validation", VALIDATION_SEED_MIN, True), ("validation", VALIDATION_SEED_MIN - 1, False), ("validation", 5, False),
+])
+def test_each_purpose_has_its_own_seed_range(tmp_path: Path, purpose: str, seed: int, ok: bool) -> None:
+    """Benchmark, training and validation scenes never share a seed: a model is neither trained nor
+    selected on a scene it is scored on."""
+    path = _write(tmp_path, {"name": "a", "seed": seed}, purpose=purpose)
+    if ok:
+        assert load_suite(path).scene_specs()[0].seed == seed
+    else:
+        with pytest.raises(ConfigError, match="seed"):
+            load_suite(path)
+
+
+def test_unknown_purpose_is_rejected(tmp_path: Path) -> None:
+    with pytest.raises(ConfigError, match="purpose"):
+        load_suite(_write(tmp_path, {"name": "a"}, purpose="training"))
 
 
 @pytest.mark.parametrize(

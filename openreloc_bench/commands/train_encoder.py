@@ -34,7 +34,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=0, help="training seed (also picks the scene seeds)")
     parser.add_argument("--scenes", type=int, default=210, help="training scenes to generate")
     parser.add_argument("--eval-scenes", type=int, default=10, help="held-out scenes for evaluation")
-    parser.add_argument("--epochs", type=int, default=8, help="training epochs")
+    parser.add_argument("--epochs", type=int, default=6, help="training epochs")
     parser.add_argument("--data", type=Path, default=None, help="scene folder (train/, eval/); default OUT/scenes")
     parser.add_argument("--views", type=int, default=3, help="views kept per object and split (random frames)")
     parser.add_argument("--width", type=int, default=320, help="render width of generated training scenes")

@@ -263,9 +263,7 @@ class OpenReLoc:
         with stage("retrieve"):
             hypotheses = self._hypotheses(matches, objects, K, diag)
             if hypotheses and verified is not None and cfg.verification.hypothesis and not cfg.no_coarse:
-                hypotheses.append(("verified", verified))
-            else:
-                alternatives = []  # further modes come only with the verified pose
+                hypotheses.append(("verified", verified))  # (without it, _verify searched no further modes)
         if not hypotheses:
             return Failure("no reference frame shares a matched landmark", diag)
 

@@ -14,13 +14,23 @@ from openreloc_bench.cli import main  # noqa: E402
 from openreloc_bench.vision import create_encoder  # noqa: E402
 
 
-def test_train_encoder_end_to_end_on_tiny_scenes(tmp_path: Path) -> None:
+def train(data: Path, out: Path) -> int:
+    return main(["train-encoder", "--out", str(out), "--data", str(data), "--epochs", "1", "--threads", "1"])
+
+
+@pytest.fixture(scope="module")
+def trained(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """(data folder of tiny train/eval scenes, weights trained on them once)."""
+    root = tmp_path_factory.mktemp("train-encoder")
     for i in range(3):
-        write_shapes_scene(tmp_path / "data" / "train" / f"t{i}", seed=i)
-    write_shapes_scene(tmp_path / "data" / "eval" / "e0", seed=100)
-    out = tmp_path / "w"
-    rc = main(["train-encoder", "--out", str(out), "--data", str(tmp_path / "data"), "--epochs", "1", "--threads", "1"])
-    assert rc == 0
+        write_shapes_scene(root / "data" / "train" / f"t{i}", seed=i)
+    write_shapes_scene(root / "data" / "eval" / "e0", seed=100)
+    assert train(root / "data", root / "w") == 0
+    return root / "data", root / "w"
+
+
+def test_train_encoder_end_to_end_on_tiny_scenes(trained: tuple[Path, Path]) -> None:
+    out = trained[1]
     cfg = json.loads((out / "config.json").read_text())
     assert cfg["tower"]["dim"] == 384 and cfg["data"]["train_crops"] > 0
     assert cfg["data"]["categories"] and len(cfg["history"]) == 1
@@ -32,6 +42,14 @@ def test_train_encoder_end_to_end_on_tiny_scenes(tmp_path: Path) -> None:
     np.testing.assert_allclose(np.linalg.norm(x, axis=1), 1, atol=1e-5)
     t = enc.encode_texts(["a red box"])
     assert t.shape == (1, 384)
+
+
+def test_train_encoder_reproduces_its_weights(trained: tuple[Path, Path], tmp_path: Path) -> None:
+    """Same data, seed and threads: the same bytes (the shipped weights are retrained this way)."""
+    data, first = trained
+    assert train(data, tmp_path / "again") == 0
+    assert (tmp_path / "again" / "image_tower.pt").read_bytes() == (first / "image_tower.pt").read_bytes()
+    assert json.loads((tmp_path / "again" / "evaluation.json").read_text()) == json.loads((first / "evaluation.json").read_text())
 
 
 def test_train_encoder_bad_arguments(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -147,6 +147,7 @@ class OfflineEncoder(ImageTextEncoder):
     name = "offline"
 
     def __init__(self, weights: str | Path | None = None, text_model: str | None = None, batch_size: int = 64):
+        self.weights = str(weights) if weights else None
         self.weights_dir = Path(weights) if weights else WEIGHTS_DIR
         self.tower, self.tower_cfg, self.meta = load_tower(self.weights_dir)
         self.text = TextTower(text_model or self.meta.get("text_model", MINILM_PACKAGE))
@@ -166,7 +167,10 @@ class OfflineEncoder(ImageTextEncoder):
         return self.text.encode(texts)
 
     def config(self) -> dict[str, Any]:
-        return {"name": self.name, "weights": str(self.weights_dir), "text_model": self.text.model_id}
+        """``weights`` stays None for the committed weights: a map then loads the committed weights of
+        whichever installation queries it (its fingerprint checks they are the same), not those of the
+        checkout that built it."""
+        return {"name": self.name, "weights": self.weights, "text_model": self.text.model_id}
 
     @classmethod
     def weights_fingerprint(cls, weights: str | Path | None = None, text_model: str | None = None, **_: Any) -> str:

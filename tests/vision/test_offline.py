@@ -74,6 +74,17 @@ def test_committed_weights_metadata() -> None:
     assert (WEIGHTS_DIR / "image_tower.pt").stat().st_size < 10 * 2**20
 
 
+def test_config_names_only_weights_passed_in(offline, tmp_path: Path) -> None:
+    """Maps record the config: the committed weights must not be recorded as this checkout's path."""
+    assert offline.config()["weights"] is None
+    again = create_encoder("offline", **{k: v for k, v in offline.config().items() if k != "name"})
+    assert again.weights_dir == WEIGHTS_DIR
+    (tmp_path / "w").mkdir()
+    for f in ("config.json", "image_tower.pt"):
+        (tmp_path / "w" / f).write_bytes((WEIGHTS_DIR / f).read_bytes())
+    assert create_encoder("offline", weights=str(tmp_path / "w")).config()["weights"] == str(tmp_path / "w")
+
+
 def test_missing_weights_directory(tmp_path: Path) -> None:
     with pytest.raises(ConfigError, match="train-encoder"):
         create_encoder("offline", weights=str(tmp_path / "none"))

@@ -63,9 +63,9 @@ class VerifyConfig:
     choice. It adds coverage where the best consensus is a wrong set of look-alikes: on 71 failed
     multi-room queries, the best-scoring sampled pose was within 1 m of the truth in 10%, one of the
     best two modes in 25%, one of the best three in 31%. All 300 multi-room queries (gen2, oracle
-    masks, the encoder weights before e486c54), R@50 / R@25: 76.0 / 67.0 with 1, 78.0 / 69.3 with 3 and with 5; median query 0.34, 0.48 and
-    0.54 s (two queries at a time on the 2-core machine; 0.59 s with 3 when each mode had a batch of
-    its own). 1 = the best consensus only."""
+    masks, the encoder weights before e486c54), R@50 / R@25: 76.0 / 67.0 with 1, 78.0 / 69.3 with 3
+    and with 5; median query 0.34, 0.48 and 0.54 s (two queries at a time on the 2-core machine;
+    0.59 s with 3 when each mode had a batch of its own). 1 = the best consensus only."""
     mode_separation: float = 1.0
     """Metres between the camera centres of two kept modes (a closer pose refines into the same one)."""
     hypothesis: bool = True

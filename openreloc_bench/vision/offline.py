@@ -148,7 +148,7 @@ class OfflineEncoder(ImageTextEncoder):
 
     def __init__(self, weights: str | Path | None = None, text_model: str | None = None, batch_size: int = 64):
         self.weights = str(weights) if weights else None
-        self.weights_dir = Path(weights) if weights else WEIGHTS_DIR
+        self.weights_dir = _weights_dir(weights)
         self.tower, self.tower_cfg, self.meta = load_tower(self.weights_dir)
         self.text = TextTower(text_model or self.meta.get("text_model", MINILM_PACKAGE))
         self.dim = self.tower_cfg.dim
@@ -175,6 +175,11 @@ class OfflineEncoder(ImageTextEncoder):
     @classmethod
     def weights_fingerprint(cls, weights: str | Path | None = None, text_model: str | None = None, **_: Any) -> str:
         """sha256 (12 hex digits) of the image tower file, plus the text model's id when one is given."""
-        pt = (Path(weights) if weights else WEIGHTS_DIR) / "image_tower.pt"
+        pt = _weights_dir(weights) / "image_tower.pt"
         digest = hashlib.sha256(pt.read_bytes()).hexdigest()[:12] if pt.is_file() else "missing"
         return digest if not text_model else f"{digest}+{text_model}"
+
+
+def _weights_dir(weights: str | Path | None) -> Path:
+    """The directory the ``weights`` option names: the committed weights when it is empty."""
+    return Path(weights) if weights else WEIGHTS_DIR

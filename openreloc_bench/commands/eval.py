@@ -3,8 +3,10 @@ once per scene (cached by method config + scene spec hash), localize every query
 splits, score them and write pose files, TUM exports and metric tables under RESULTS.
 
 Results are resumable (--resume skips finished (scene, method, split) jobs) and record the method's
-full config, the track, the scene spec hashes and the git commit. Jobs run inline, on a local process
-pool (--workers N) or on Ray (--executor ray; RAY_ADDRESS or --ray-address selects a cluster).
+full config, the track, the scene spec hashes and the git commit. --seeds repeats every seeded method
+once per seed (the maps are shared) and reports each metric's spread over the seeds. Jobs run inline,
+on a local process pool (--workers N) or on Ray (--executor ray; RAY_ADDRESS or --ray-address selects
+a cluster).
 
 Example:
   openreloc-bench eval --suite scenes/smoke.yaml --methods nearest-frame --data data --out results
@@ -44,6 +46,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--timeout", type=float, default=300.0, help="per-query limit in seconds (0 = none, in-process)")
     p.add_argument("--ablations", action="store_true", help=f"also run the paper's ablation rows of {ABLATED_METHOD}")
     p.add_argument("--robustness", action="store_true", help="also localize the lighting 1-4 and displaced splits")
+    p.add_argument("--seeds", default="",
+                   help="comma-separated seeds: run every method that has a 'seed' setting once per seed and "
+                        "report the spread (tables/seeds.csv); deterministic methods run once")
     p.add_argument("--method-config", action="append", default=[], metavar="NAME=YAML",
                    help="config overrides for one method from a YAML mapping (repeatable)")
     p.add_argument("--plugin", action="append", default=[], metavar="MODULE",
@@ -120,6 +125,13 @@ def _scene_state(root: Path, expected_hash: str) -> str:
     return "complete" if counts and done else "partial"
 
 
+def _seeds(s: str) -> list[int]:
+    try:
+        return [int(x) for x in _csv(s)]
+    except ValueError:
+        raise ConfigError(f"--seeds expects comma-separated integers, got '{s}'") from None
+
+
 def run(args: argparse.Namespace) -> int:
     if args.workers < 1:
         raise ConfigError("--workers must be >= 1")
@@ -134,15 +146,17 @@ def run(args: argparse.Namespace) -> int:
     cfg = runner.EvalConfig(
         data=args.data, out=args.out, scenes=scenes, runs=runs, splits=splits, track=args.track,
         executor=args.executor, workers=args.workers, ray_address=args.ray_address, resume=args.resume,
-        timeout_s=args.timeout, plugins=args.plugin,
+        timeout_s=args.timeout, plugins=args.plugin, seeds=_seeds(args.seeds),
     )  # fmt: skip
     report = runner.evaluate(cfg)
     queries = runner.load_run_queries(args.out)
     print(f"maps: {report.maps_built} built, {report.maps_cached} cached; jobs: {report.jobs_run} run, "
           f"{report.jobs_skipped} resumed; {report.wall_s:.1f} s")
     if not queries.empty:
-        _, suite = tables.write_tables(args.out / "tables", queries, runner.load_map_records(args.out))
+        _, suite, seeds = tables.write_tables(args.out / "tables", queries, runner.load_map_records(args.out))
         print(tables.compact(suite))
+        if not seeds.empty:
+            print(tables.compact_seeds(seeds))
         print(f"tables: {args.out / 'tables'}")
     for err in report.errors:
         print(f"error: {err}")

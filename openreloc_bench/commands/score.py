@@ -43,7 +43,7 @@ def run(args: argparse.Namespace) -> int:
                                      args.method or args.submission.resolve().name, args.track)
     out = args.out or args.submission / "scores"
     maps = pd.DataFrame(columns=["map_hash", "scene", "map_mb", "mapping_time_s"])
-    _, suite = tables.write_tables(out / "tables", queries, maps)
+    _, suite, _ = tables.write_tables(out / "tables", queries, maps)
     missing = queries[queries["reason"] == "missing"]
     if len(missing):
         print(f"{len(missing)} of {len(queries)} queries have no estimate (counted as failures)")

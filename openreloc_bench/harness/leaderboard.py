@@ -19,10 +19,10 @@ import pandas as pd  # noqa: E402
 from openreloc_bench.data import io  # noqa: E402
 from openreloc_bench.errors import DataError  # noqa: E402
 from openreloc_bench.harness.metrics import cumulative_curve  # noqa: E402
-from openreloc_bench.harness.tables import build_tables, paper_table  # noqa: E402
+from openreloc_bench.harness.tables import build_tables, paper_table, pool_seeds  # noqa: E402
 
 BOARD_COLUMNS = {
-    "method": "Method", "track": "Track", "split": "Split", "n_scenes": "Scenes", "n_queries": "Queries",
+    "method": "Method", "track": "Track", "split": "Split", "n_scenes": "Scenes", "n_seeds": "Seeds", "n_queries": "Queries",
     "recall_100cm": "R@100cm [%]", "recall_50cm": "R@50cm [%]", "recall_25cm": "R@25cm [%]",
     "recall_25cm_5deg": "R@25cm,5° [%]", "mte_50cm_m": "MTE@50 [m]", "mre_50cm_deg": "MRE@50 [°]",
     "mte_25cm_m": "MTE@25 [m]", "mre_25cm_deg": "MRE@25 [°]", "median_te_m": "Median TE [m]",
@@ -191,7 +191,7 @@ def plot_topdown(q: pd.DataFrame, scene: str, path: Path) -> None:
 
 def write_leaderboard(results: list[Path], out: Path) -> list[Path]:
     """Render everything into ``out``; returns the files written."""
-    q = load_queries(results)
+    q = pool_seeds(load_queries(results))
     scenes, suite = build_tables(q, load_maps(results))
     b = board(suite)
     out.mkdir(parents=True, exist_ok=True)

@@ -57,6 +57,14 @@ class MethodRun:
     """Registry name."""
     overrides: dict[str, Any] = field(default_factory=dict)
     """Config overrides passed to the method's constructor."""
+    seed: int | None = None
+    """The method's ``seed`` setting in this run, when the evaluation repeats the variant over seeds."""
+    variant: str = ""
+    """The label without its seed: the tables pool every seed of a variant under it (empty: the label)."""
+
+    def with_seed(self, seed: int) -> MethodRun:
+        """This variant run with ``seed`` (labelled ``<label>@seed<N>``)."""
+        return MethodRun(f"{self.label}@seed{seed}", self.method, {**self.overrides, "seed": seed}, seed, self.label)
 
 
 @dataclass
@@ -303,6 +311,9 @@ class EvalConfig:
     """Per-query limit in seconds (0 = no limit, queries run in the job's process)."""
     plugins: list[str] = field(default_factory=list)
     """Modules to import first (methods registered with ``methods.register``)."""
+    seeds: list[int] = field(default_factory=list)
+    """Run every variant whose method has a ``seed`` setting once per seed (one seed's recall moves by
+    points on a few hundred queries); deterministic methods run once. Empty: each run's own config."""
 
 
 @dataclass
@@ -341,25 +352,46 @@ def plan(cfg: EvalConfig) -> tuple[list[MapJob], list[QueryJob]]:
                     raise DataError(scene.root / split, "no instance masks: use --track predicted")
         scenes[name] = scene
     map_jobs, query_jobs = [], []
-    for run in cfg.runs:
-        try:
-            method = create_method(run.method, **run.overrides)
-            mcfg = method_config(method)
-        except TypeError as e:  # plugins that take **kwargs loosely fail this way on a bad key
-            raise ConfigError(f"method '{run.label}': invalid config ({e})") from None
+    for run, method in _seeded_runs(cfg.runs, cfg.seeds):
+        mcfg = method_config(method)
         chash = cache.config_hash(mcfg)
         map_hash = cache.config_hash(map_config(method))
         for name, scene in scenes.items():
             spec = scene_spec_hash(scene)
             map_dir = cfg.out / "maps" / run.method / map_hash / name
-            prov = {"method": run.label, "registry_name": run.method, "method_config": mcfg,
-                    "config_hash": chash, "map_hash": map_hash, "scene": name, "spec_hash": spec, "git_commit": commit}
+            prov = {"method": run.label, "variant": run.variant or run.label, "seed": run.seed,
+                    "registry_name": run.method, "method_config": mcfg, "config_hash": chash,
+                    "map_hash": map_hash, "scene": name, "spec_hash": spec, "git_commit": commit}
             map_jobs.append(MapJob(run, scene.root, map_dir, spec, prov, cfg.plugins))
             for split in cfg.splits:
                 out_dir = cfg.out / "runs" / run.label / cfg.track / name
                 query_jobs.append(QueryJob(run, scene.root, split, cfg.track, map_dir, out_dir,
                                            cfg.timeout_s, prov, cfg.plugins))
     return map_jobs, query_jobs
+
+
+def _create(run: MethodRun) -> Relocalizer:
+    try:
+        return create_method(run.method, **run.overrides)
+    except TypeError as e:  # plugins that take **kwargs loosely fail this way on a bad key
+        raise ConfigError(f"method '{run.label}': invalid config ({e})") from None
+
+
+def _seeded_runs(runs: list[MethodRun], seeds: list[int]) -> list[tuple[MethodRun, Relocalizer]]:
+    """Every run with its method instance, repeated once per seed where the method has a ``seed`` setting."""
+    if len(set(seeds)) != len(seeds):
+        raise ConfigError(f"seeds repeat: {seeds}")
+    out = []
+    for run in runs:
+        method = _create(run)
+        if not seeds or "seed" not in method_config(method)["config"]:
+            out.append((run, method))
+            continue
+        if "seed" in run.overrides:
+            raise ConfigError(f"method '{run.label}': its config sets seed {run.overrides['seed']} and seeds "
+                              f"{seeds} are given too; use one of them")
+        out += [(r, _create(r)) for r in map(run.with_seed, seeds)]
+    return out
 
 
 def evaluate(cfg: EvalConfig) -> EvalReport:
@@ -410,6 +442,8 @@ def load_run_queries(out: Path) -> pd.DataFrame:
         df.insert(0, "map_hash", rec.get("map_hash", rec["config_hash"]))  # older runs keyed maps by the full config
         for key in ("git_commit", "spec_hash", "config_hash", "split", "scene", "track", "method"):
             df.insert(0, key, rec[key])
+        df["variant"] = rec.get("variant", rec["method"])  # runs from before seeds: their own variant
+        df["seed"] = pd.array([rec.get("seed")] * len(df), dtype="Int64")
         frames.append(df)
     return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
 

@@ -3,6 +3,10 @@
 The per-suite table pools all queries of all scenes (each query weighs the same), the way a
 recall over a dataset is read; ``n_scenes`` says how many scenes a row covers, so rows of methods
 run on different scene sets are not mistaken for comparable.
+
+A variant run over several seeds (``eval --seeds``) has one row per seed (``<variant>@seed<N>``) in
+these tables, a ``seeds`` table with each metric's spread over the seeds, and one pooled row in the
+paper's tables and the leaderboard (:func:`pool_seeds`).
 """
 
 from __future__ import annotations
@@ -21,7 +25,7 @@ from openreloc_bench.harness.metrics import METRIC_COLUMNS, summarize
 
 SCENE_KEYS = ["method", "track", "scene", "split"]
 SUITE_KEYS = ["method", "track", "split"]
-EXTRA_COLUMNS = ("n_scenes", "map_mb", "mapping_time_s", "latency_median_s", "latency_p90_s")
+EXTRA_COLUMNS = ("n_scenes", "n_seeds", "map_mb", "mapping_time_s", "latency_median_s", "latency_p90_s")
 COMPACT_COLUMNS = {
     "recall_100cm": "R@1m%", "recall_50cm": "R@50cm%", "recall_25cm": "R@25cm%", "recall_25cm_5deg": "R@25cm,5°%",
     "mte_25cm_m": "MTE@25[m]", "mre_25cm_deg": "MRE@25[°]", "median_te_m": "med TE[m]", "median_re_deg": "med RE[°]",
@@ -38,6 +42,7 @@ def metric_table(queries: pd.DataFrame, keys: list[str], maps: pd.DataFrame) -> 
         row["n_queries"], row["n_failed"] = int(row["n_queries"]), int(row["n_failed"])
         scene_maps = maps.merge(g[["map_hash", "scene"]].drop_duplicates(), on=["map_hash", "scene"])
         row["n_scenes"] = int(g["scene"].nunique())
+        row["n_seeds"] = max(1, int(g["seed"].nunique())) if "seed" in g else 1
         row["map_mb"] = float(scene_maps["map_mb"].mean()) if len(scene_maps) else math.nan
         row["mapping_time_s"] = float(scene_maps["mapping_time_s"].mean()) if len(scene_maps) else math.nan
         lat = g["runtime_s"].to_numpy(dtype=float)
@@ -51,6 +56,46 @@ def metric_table(queries: pd.DataFrame, keys: list[str], maps: pd.DataFrame) -> 
     return pd.DataFrame(rows, columns=cols)
 
 
+def pool_seeds(queries: pd.DataFrame) -> pd.DataFrame:
+    """Every seed's rows under its variant's name. Each seed answers the same queries, so the pooled
+    recall is the seeds' mean recall. A single run of a variant that was also run over seeds (an
+    earlier eval into the same results) is left out rather than counted as one more seed."""
+    if "seed" not in queries:
+        return queries
+    seeded = queries["seed"].notna()
+    superseded = ~seeded & queries["method"].isin(set(queries.loc[seeded, "variant"]))
+    pooled = queries.assign(method=queries["method"].where(~seeded, queries["variant"]))
+    return pooled[~superseded]
+
+
+SEED_METRICS = ("recall_50cm", "recall_25cm", "mte_25cm_m", "mre_25cm_deg")
+SEED_KEYS = ["variant", "track", "split"]
+
+
+def seed_table(queries: pd.DataFrame, maps: pd.DataFrame) -> pd.DataFrame:
+    """Per variant run over seeds: each of :data:`SEED_METRICS`' mean, std, min and max over the seeds."""
+    seeded = queries[queries["seed"].notna()] if "seed" in queries else queries.iloc[:0]
+    stats = ("mean", "std", "min", "max")
+    cols = [*SEED_KEYS, "n_seeds", "n_queries", *(f"{m}_{s}" for m in SEED_METRICS for s in stats)]
+    if seeded.empty:
+        return pd.DataFrame(columns=cols)
+    per_seed = metric_table(seeded.astype({"seed": int}), [*SEED_KEYS, "seed"], maps)
+    agg = per_seed.groupby(SEED_KEYS, sort=True).agg(
+        n_seeds=("seed", "nunique"), n_queries=("n_queries", "first"),
+        **{f"{m}_{s}": (m, s) for m in SEED_METRICS for s in stats})
+    return agg.reset_index()[cols]
+
+
+def compact_seeds(seeds: pd.DataFrame) -> str:
+    """Mean ± std [min, max] over seeds of the recalls, one line per variant."""
+    lines = []
+    for _, r in seeds.iterrows():
+        cells = [f"{label} {r[f'{m}_mean']:.1f} ± {r[f'{m}_std']:.1f} [{r[f'{m}_min']:.1f}, {r[f'{m}_max']:.1f}]"
+                 for m, label in (("recall_50cm", "R@50cm%"), ("recall_25cm", "R@25cm%"))]
+        lines.append(f"{r['variant']} {r['track']} {r['split']}, {r['n_seeds']} seeds: " + "  ".join(cells))
+    return "\n".join(lines)
+
+
 def write_frame(df: pd.DataFrame, path_stem: Path) -> None:
     """CSV + JSON (records; infinities as strings so the JSON stays standard)."""
     io.atomic_write_text(path_stem.with_suffix(".csv"), df.to_csv(index=False))
@@ -62,15 +107,19 @@ def build_tables(queries: pd.DataFrame, maps: pd.DataFrame) -> tuple[pd.DataFram
     return metric_table(queries, SCENE_KEYS, maps), metric_table(queries, SUITE_KEYS, maps)
 
 
-def write_tables(tables_dir: Path, queries: pd.DataFrame, maps: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """queries / scenes / suite tables (CSV + JSON) and, where the runs exist, the paper's tables (markdown)."""
+def write_tables(tables_dir: Path, queries: pd.DataFrame, maps: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame, pd.DataFrame]:
+    """queries / scenes / suite tables (CSV + JSON), the seeds table where variants ran over seeds and,
+    where the runs exist, the paper's tables (markdown, seeds pooled); returns scenes, suite, seeds."""
     scenes, suite = build_tables(queries, maps)
+    seeds = seed_table(queries, maps)
     write_frame(queries, tables_dir / "queries")
     write_frame(scenes, tables_dir / "scenes")
     write_frame(suite, tables_dir / "suite")
-    for name, text in paper_tables(scenes).items():
+    if not seeds.empty:
+        write_frame(seeds, tables_dir / "seeds")
+    for name, text in paper_tables(metric_table(pool_seeds(queries), SCENE_KEYS, maps)).items():
         io.atomic_write_text(tables_dir / f"{name}.md", text)
-    return scenes, suite
+    return scenes, suite, seeds
 
 
 def compact(suite: pd.DataFrame) -> str:

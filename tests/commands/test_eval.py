@@ -46,6 +46,14 @@ def test_eval_prints_a_metrics_table(data: Path, tmp_path: Path, capsys: pytest.
     assert (q[q.method == "test-oracle"]["t_err_m"].round(6) == 0.3).all()
 
 
+def test_eval_prints_the_spread_over_seeds(data: Path, tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    rc = main(eval_args(data, tmp_path / "r", "--methods", "test-oracle", "--timeout", "0", "--seeds", "0,3"))
+    out = capsys.readouterr().out
+    assert rc == 0 and "test-oracle@seed3" in out
+    assert "test-oracle oracle-mask query, 2 seeds: R@50cm% 100.0 ± 0.0 [100.0, 100.0]  R@25cm% 50.0 ± 70.7" in out
+    assert (tmp_path / "r" / "tables" / "seeds.csv").is_file()
+
+
 @pytest.mark.parametrize(
     "extra, message",
     [
@@ -53,6 +61,7 @@ def test_eval_prints_a_metrics_table(data: Path, tmp_path: Path, capsys: pytest.
         (["--methods", "test-oracle", "--method-config", "x=y.yaml"], "not in --methods"),
         (["--methods", "test-oracle", "--splits", "query_displaced"], "no split 'query_displaced'"),
         (["--methods", "test-oracle", "--workers", "0"], "--workers must be >= 1"),
+        (["--methods", "test-oracle", "--seeds", "0,one"], "--seeds expects comma-separated integers"),
     ],
 )
 def test_bad_input_is_one_line(data: Path, tmp_path: Path, capsys: pytest.CaptureFixture, extra: list[str],

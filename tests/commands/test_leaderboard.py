@@ -49,6 +49,17 @@ def test_leaderboard_merges_eval_and_score_results(results: tuple[Path, Path], c
         assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and f"plots/{name}.png" in page
 
 
+def test_leaderboard_pools_the_seeds_of_a_variant(results: tuple[Path, Path], tmp_path: Path) -> None:
+    root, data = results
+    assert main(["eval", "--scenes", "s1,s2", "--data", str(data), "--out", str(tmp_path / "res"), "--timeout", "0",
+                 "--methods", "test-oracle", "--seeds", "0,3", "--plugin", "harness_test_methods"]) == 0
+    assert main(["leaderboard", str(tmp_path / "res"), "--out", str(tmp_path / "board")]) == 0
+    board = pd.read_csv(tmp_path / "board" / "leaderboard.csv")
+    row = board.set_index("method").loc["test-oracle"]  # noise 5 cm and 35 cm: every query within 50, half within 25
+    assert (row.n_seeds, row.n_queries, row.recall_50cm, row.recall_25cm) == (2, 20, 100.0, 50.0)
+    assert len(board) == 1 and "| Seeds |" in (tmp_path / "board" / "leaderboard.md").read_text()
+
+
 def test_leaderboard_of_an_empty_directory_is_a_clear_error(tmp_path: Path, capsys) -> None:
     assert main(["leaderboard", str(tmp_path), "--out", str(tmp_path / "b")]) == 2
     assert "no tables/queries.csv" in capsys.readouterr().err

@@ -35,21 +35,21 @@ def test_eval_writes_poses_tum_tables_and_provenance(data_dir: Path, tmp_path: P
     marker = io.read_json(d / "query.done.json")
     assert marker["method_config"] == {"name": "test-oracle", "config": {
         "noise_m": 0.1, "noise_deg": 2.0, "fail_on": "", "raise_on": "", "hang_on": "", "delay_s": 0.0,
-        "expect_track": "", "map_tag": ""}}
+        "expect_track": "", "map_tag": "", "seed": 0}}
     assert marker["track"] == "oracle-mask" and marker["spec_hash"] == "hash-sA-1" and marker["git_commit"]
     q = runner.load_run_queries(tmp_path)
     assert len(q) == 2 * 2 * 2 * 3
     oracle = q[q["method"] == "test-oracle"]
     np.testing.assert_allclose(oracle["t_err_m"], 0.1, atol=1e-6)
     np.testing.assert_allclose(oracle["r_err_deg"], 2.0, atol=1e-4)
-    scenes, suite = tables.write_tables(tmp_path / "tables", q, runner.load_map_records(tmp_path))
+    scenes, suite, seeds = tables.write_tables(tmp_path / "tables", q, runner.load_map_records(tmp_path))
     row = suite[(suite.method == "test-oracle") & (suite.split == "query")].iloc[0]
     assert row.recall_25cm == 100.0 and row.n_scenes == 2 and row.n_queries == 6
     assert row.mte_25cm_m == pytest.approx(0.1) and row.mre_25cm_deg == pytest.approx(2.0, abs=1e-4)
     assert row.map_mb > 0 and row.mapping_time_s >= 0 and row.latency_p90_s >= row.latency_median_s
     for name in ("queries", "scenes", "suite"):
         assert (tmp_path / "tables" / f"{name}.csv").is_file() and (tmp_path / "tables" / f"{name}.json").is_file()
-    assert len(scenes) == 8
+    assert len(scenes) == 8 and seeds.empty and not (tmp_path / "tables" / "seeds.csv").exists()
     robustness = (tmp_path / "tables" / "robustness_test-oracle_oracle-mask.md").read_text()
     assert "| Original | 100 / 100 | 100 / 100 | 0.10 / 0.10 |" in robustness and "Lighting 1" in robustness
 
@@ -100,6 +100,36 @@ def test_local_pool_gives_the_same_results_as_inline(data_dir: Path, tmp_path: P
     pd.testing.assert_frame_equal(frames[0], frames[1])
 
 
+def test_seeds_repeat_seeded_methods_and_share_their_maps(data_dir: Path, tmp_path: Path) -> None:
+    runs = [MethodRun("test-oracle", "test-oracle", {"noise_m": 0.2}), MethodRun("nearest-frame", "nearest-frame")]
+    report = runner.evaluate(cfg(data_dir, tmp_path, runs, seeds=[0, 1]))
+    assert report.errors == [] and report.maps_built == 4 and report.jobs_run == 6  # nearest-frame has no seed
+    q = runner.load_run_queries(tmp_path)
+    assert sorted(q["method"].unique()) == ["nearest-frame", "test-oracle@seed0", "test-oracle@seed1"]
+    seeded = q[q["variant"] == "test-oracle"]
+    np.testing.assert_allclose(seeded["t_err_m"], 0.2 + 0.1 * seeded["seed"].to_numpy(dtype=float), atol=1e-6)
+    assert q.loc[q["method"] == "nearest-frame", "seed"].isna().all()
+    _, suite, seeds = tables.write_tables(tmp_path / "tables", q, runner.load_map_records(tmp_path))
+    assert set(suite["method"]) == {"nearest-frame", "test-oracle@seed0", "test-oracle@seed1"}
+    row = seeds.set_index("variant").loc["test-oracle"]
+    assert (row.n_seeds, row.n_queries) == (2, 6)
+    assert (row.recall_25cm_mean, row.recall_25cm_min, row.recall_25cm_max) == (50.0, 0.0, 100.0)
+    assert row.recall_25cm_std == pytest.approx(np.std([0, 100], ddof=1))
+    assert row.recall_50cm_mean == 100.0 and row.recall_50cm_std == 0.0
+    assert row.mte_25cm_m_mean == pytest.approx(0.2)
+    assert "test-oracle oracle-mask query, 2 seeds: R@50cm% 100.0 ± 0.0 [100.0, 100.0]" in tables.compact_seeds(seeds)
+    pooled = tables.pool_seeds(q)
+    assert sorted(pooled["method"].unique()) == ["nearest-frame", "test-oracle"] and len(pooled) == len(q)
+
+
+def test_a_single_run_of_a_seeded_variant_is_not_pooled_as_one_more_seed(data_dir: Path, tmp_path: Path) -> None:
+    run = MethodRun("test-oracle", "test-oracle", {"noise_m": 0.2})
+    runner.evaluate(cfg(data_dir, tmp_path, [run]))
+    runner.evaluate(cfg(data_dir, tmp_path, [run], seeds=[1, 2]))
+    pooled = tables.pool_seeds(runner.load_run_queries(tmp_path))
+    assert set(pooled["method"]) == {"test-oracle"} and sorted(pooled["seed"].unique()) == [1, 2]
+
+
 @pytest.mark.parametrize(
     "change, error, match",
     [
@@ -108,6 +138,8 @@ def test_local_pool_gives_the_same_results_as_inline(data_dir: Path, tmp_path: P
         (dict(splits=["query_light4"]), DataError, "no split 'query_light4'"),
         (dict(track="oracle"), ConfigError, "unknown track"),
         (dict(runs=[MethodRun("x", "test-oracle", {"nope": 1})]), ConfigError, "invalid config.*nope"),
+        (dict(seeds=[0, 0]), ConfigError, "seeds repeat"),
+        (dict(runs=[MethodRun("x", "test-oracle", {"seed": 3})], seeds=[0, 1]), ConfigError, "sets seed 3"),
     ],
 )
 def test_bad_input_is_rejected_before_any_work(data_dir: Path, tmp_path: Path, change: dict, error: type,

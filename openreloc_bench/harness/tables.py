@@ -63,8 +63,10 @@ def pool_seeds(queries: pd.DataFrame) -> pd.DataFrame:
     if "seed" not in queries:
         return queries
     seeded = queries["seed"].notna()
-    superseded = ~seeded & queries["method"].isin(set(queries.loc[seeded, "variant"]))
     pooled = queries.assign(method=queries["method"].where(~seeded, queries["variant"]))
+    keys = ["method", "track", "scene", "split"]
+    runs_over_seeds = pd.MultiIndex.from_frame(pooled.loc[seeded, keys].drop_duplicates())
+    superseded = ~seeded & pd.MultiIndex.from_frame(pooled[keys]).isin(runs_over_seeds)
     return pooled[~superseded]
 
 

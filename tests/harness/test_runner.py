@@ -124,10 +124,12 @@ def test_seeds_repeat_seeded_methods_and_share_their_maps(data_dir: Path, tmp_pa
 
 def test_a_single_run_of_a_seeded_variant_is_not_pooled_as_one_more_seed(data_dir: Path, tmp_path: Path) -> None:
     run = MethodRun("test-oracle", "test-oracle", {"noise_m": 0.2})
-    runner.evaluate(cfg(data_dir, tmp_path, [run]))
+    runner.evaluate(cfg(data_dir, tmp_path, [run], splits=["query", "query_light1"]))
     runner.evaluate(cfg(data_dir, tmp_path, [run], seeds=[1, 2]))
     pooled = tables.pool_seeds(runner.load_run_queries(tmp_path))
-    assert set(pooled["method"]) == {"test-oracle"} and sorted(pooled["seed"].unique()) == [1, 2]
+    query, light = pooled[pooled["split"] == "query"], pooled[pooled["split"] == "query_light1"]
+    assert set(pooled["method"]) == {"test-oracle"} and sorted(query["seed"].unique()) == [1, 2]
+    assert len(light) == 6 and light["seed"].isna().all()  # a split run once only stays
 
 
 @pytest.mark.parametrize(

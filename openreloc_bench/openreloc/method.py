@@ -64,6 +64,7 @@ from openreloc_bench.vision.base import (
     create_segmenter,
     encoder_fingerprint,
 )
+from openreloc_bench.vision.preprocess import touches_border
 
 STAGES = ("segment", "encode", "describe", "associate", "verify", "retrieve", "refine", "compare")
 
@@ -405,7 +406,7 @@ class OpenReLoc:
         if cfg.coarse.pnp:
             qmasks = [objects[mt.query].mask for mt in matches]
             centroids = np.array([np.argwhere(mk)[:, ::-1].mean(0) for mk in qmasks])
-            truncated = np.array([mk[[0, -1]].any() or mk[:, [0, -1]].any() for mk in qmasks])
+            truncated = np.array([touches_border(mk) for mk in qmasks])
             T = pnp_prior(centroids, truncated, [m.landmarks[mt.landmark].points for mt in matches], K,
                           (m.width, m.height), cfg.coarse)
             if T is not None:

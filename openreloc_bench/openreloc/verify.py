@@ -37,6 +37,7 @@ from scipy.spatial.transform import Rotation
 
 from openreloc_bench import geometry
 from openreloc_bench.openreloc.retrieval import solve_pnp
+from openreloc_bench.vision.preprocess import touches_border
 
 _DIRECTIONS = np.array([d for d in itertools.product((-1, 0, 1), repeat=3)
                         if sum(map(abs, d)) in (1, 3)], dtype=np.float64)
@@ -220,7 +221,7 @@ class _CandidateTable:
         for q in usable:
             ys, xs = np.nonzero(objects[q].mask)
             self.centroid[q] = np.array([xs.mean(), ys.mean()])
-            self.truncated[q] = bool(xs.min() == 0 or ys.min() == 0 or xs.max() == w - 1 or ys.max() == h - 1)
+            self.truncated[q] = touches_border(objects[q].mask)
             for r, c in enumerate(objects[q].candidates[:k]):
                 rows.append(c)
                 obj.append(q)

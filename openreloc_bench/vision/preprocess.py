@@ -64,6 +64,12 @@ def mask_box(mask: np.ndarray) -> np.ndarray:
     return np.array([xs[0], ys[0], xs[-1] + 1, ys[-1] + 1], dtype=np.int64)
 
 
+def touches_border(mask: np.ndarray) -> bool:
+    """Whether a bool mask reaches the image border: the object is cut there, so the mask's centroid
+    and box are not the whole object's."""
+    return bool(mask[[0, -1]].any() or mask[:, [0, -1]].any())
+
+
 def square_crop(rgb: np.ndarray, box: Sequence[float], scale: float = 1.2, fill: int = 0) -> np.ndarray:
     """The square around ``box`` enlarged by ``scale`` (1.2 = 10% padding each side); outside pixels = ``fill``.
 

@@ -167,7 +167,8 @@ def verify_matches(
             break
         if all(np.linalg.norm(cameras[k] - cameras[j]) >= cfg.mode_separation for j in starts):
             starts.append(k)
-    optimised = [c for c in (_consensus(table, iou[k], R[k], t[k], centers, K, cfg) for k in starts) if c is not None]
+    optimised = [c for c in (_consensus(table, iou[k], scores[k], R[k], t[k], centers, K, cfg) for k in starts)
+                 if c is not None]
     kept: list[Verification] = []
     for assignment, T_wc, _ in sorted(optimised, key=lambda c: -c[2]):
         if len(kept) >= max(1, cfg.modes):
@@ -181,13 +182,14 @@ def verify_matches(
     return kept[0]
 
 
-def _consensus(table: _CandidateTable, iou: np.ndarray, R: np.ndarray, t: np.ndarray, centers: np.ndarray,
-               K: np.ndarray, cfg: VerifyConfig) -> tuple[dict[int, int], np.ndarray, float] | None:
-    """(assignment, T_wc, score) of one sampled pose (R, t world to camera, ``iou`` its row of overlaps):
-    its inliers, the pose re-fitted to them while that raises the score (LO-RANSAC); None below
-    ``min_inliers``."""
+def _consensus(table: _CandidateTable, iou: np.ndarray, score: float, R: np.ndarray, t: np.ndarray,
+               centers: np.ndarray, K: np.ndarray,
+               cfg: VerifyConfig) -> tuple[dict[int, int], np.ndarray, float] | None:
+    """(assignment, T_wc, score) of one sampled pose (R, t world to camera, ``iou`` its row of overlaps,
+    ``score`` its score): its inliers, the pose re-fitted to them while that raises the score
+    (LO-RANSAC); None below ``min_inliers``."""
     assignment = table.assign(iou)
-    score = float(table.score(iou[None])[0])
+    score = float(score)
     for _ in range(cfg.refits):
         if cfg.box_fit:
             refit = table.fit_boxes(assignment, R, t) if len(assignment) >= 3 else None

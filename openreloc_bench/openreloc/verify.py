@@ -74,12 +74,11 @@ class VerifyConfig:
     each box's edges, robustly; sides cut by the image border only bound) instead of re-solving PnP on
     mask centroids. A centroid is not the projection of the landmark's centre (occlusion, the unseen
     back of the object), so a P3P pose from three right matches is often a metre off."""
-    lo_poses: int = 16
+    lo_poses: int = 32
     """Best-scoring sampled poses (at least ``mode_separation`` apart) given local optimisation; the
-    modes are chosen among them by their score after it. With the box fit, verification takes 0.12 ->
-    0.18 s median on multi-room (300 queries). 32 poses: R@50 / R@25 +1.1 / +0.8 on the validation
-    suite over seeds 0-2 (p = 0.02 at 50 cm), median query 0.55 -> 0.64 s two at a time; not yet the
-    default, as the suites were not rerun with it."""
+    modes are chosen among them by their score after it. 32 rather than 16: R@50 / R@25 +1.1 / +0.8 on
+    the validation suite over seeds 0-2 (paired p = 0.02 at 50 cm), median query 0.55 -> 0.64 s two at
+    a time. Verification takes 0.18 s median on multi-room with 16 poses (300 queries)."""
     truncated_weight: float = 0.25
     """Relative chance of drawing an object cut by the image border into a sample: its mask centroid is
     far from where its landmark's centre projects, so P3P on it is biased."""

@@ -46,6 +46,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--instance-weight", type=float, default=0.3, help="two-view image loss weight")
     parser.add_argument("--scenes-per-batch", type=int, default=4,
                         help="anchors of a batch come from this many scenes (0: all scenes at random)")
+    parser.add_argument("--device", default="cpu",
+                        help="torch device of the training steps: cpu (the shipped weights), cuda, cuda:N")
     parser.add_argument("--repeat-threshold", type=float, default=0.0,
                         help="category-balanced sampling: categories under this share of the crops repeat (0: off)")
 
@@ -103,12 +105,13 @@ def run(args: argparse.Namespace) -> int:
     from openreloc_bench.vision import vocabulary as voc
     from openreloc_bench.vision.crops import CropSet, crops_from_scenes
     from openreloc_bench.vision.offline import MINILM_PACKAGE, OfflineEncoder, TextTower, TowerConfig
-    from openreloc_bench.vision.training import TrainConfig, evaluate, save_weights, train_tower
+    from openreloc_bench.vision.training import TrainConfig, evaluate, save_weights, train_tower, training_device
 
     if args.scenes < 1 or args.eval_scenes < 1 or args.epochs < 1 or args.views < 1:
         raise ConfigError("--scenes, --eval-scenes, --epochs and --views must be >= 1")
     if not 0.0 <= args.repeat_threshold <= 1.0:
         raise ConfigError("--repeat-threshold must be in [0, 1]")
+    device = training_device(args.device)  # refuse a missing GPU before generating scenes
     torch.set_num_threads(args.threads)
     data = args.data or args.out / "scenes"
     train_dirs, eval_dirs = _scene_dirs(data / "train"), _scene_dirs(data / "eval")
@@ -145,7 +148,7 @@ def run(args: argparse.Namespace) -> int:
     cfg = TrainConfig(
         seed=args.seed, epochs=args.epochs, threads=args.threads, instance_weight=args.instance_weight,
         pairs_per_batch=args.pairs_per_batch, scenes_per_batch=args.scenes_per_batch,
-        repeat_threshold=args.repeat_threshold,
+        repeat_threshold=args.repeat_threshold, device=args.device,
     )
     tower_cfg = TowerConfig(input_size=args.input_size)
     tower, info = train_tower(train, text, cfg, tower_cfg, log=lambda m: print(m, flush=True))
@@ -163,7 +166,8 @@ def run(args: argparse.Namespace) -> int:
         "held_out_synonyms": {k: list(v) for k, v in voc.HELD_OUT_SYNONYMS.items()},
         "history": info["history"],
         "train_seconds": info["train_seconds"],
-        "environment": {"torch": torch.__version__, "python": platform.python_version(), "threads": args.threads},
+        "environment": {"torch": torch.__version__, "python": platform.python_version(), "threads": args.threads,
+                        **({"gpu": torch.cuda.get_device_name(device)} if device.type == "cuda" else {})},
     }
     save_weights(args.out, tower, tower_cfg, meta)
     enc = OfflineEncoder(args.out)

@@ -57,6 +57,12 @@ def test_train_encoder_bad_arguments(tmp_path: Path, capsys: pytest.CaptureFixtu
     assert "must be >= 1" in capsys.readouterr().err
 
 
+def test_train_encoder_refuses_a_device_it_cannot_use(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["train-encoder", "--out", str(tmp_path / "w"), "--device", "tpu"]) == 2
+    assert "unknown torch device" in capsys.readouterr().err
+    assert not (tmp_path / "w").exists()  # refused before generating anything
+
+
 def test_training_scenes_stay_out_of_the_validation_range(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     # --seed 9000: the scene seeds would start at TRAINING_SEED_MIN + 9,000,000 = VALIDATION_SEED_MIN
     assert main(["train-encoder", "--out", str(tmp_path / "w"), "--seed", "9000", "--scenes", "1", "--eval-scenes", "1"]) == 2
@@ -79,6 +85,7 @@ def test_defaults_are_the_recipe_of_the_shipped_weights() -> None:
     assert (args.seed, args.epochs, args.threads) == (train["seed"], train["epochs"], train["threads"])
     assert (args.pairs_per_batch, args.scenes_per_batch) == (train["pairs_per_batch"], train["scenes_per_batch"])
     assert args.instance_weight == train["instance_weight"]
+    assert args.device == train.get("device", "cpu")
     assert (args.scenes, args.eval_scenes) == (len(data["train_scenes"]), len(data["eval_scenes"]))
     assert (args.views, [args.width, args.height]) == (data["views_per_object_and_split"], data["render_size"])
     assert args.input_size == shipped["tower"]["input_size"]

@@ -1,16 +1,24 @@
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import pytest
+import torch
 
+from openreloc_bench.errors import ConfigError
 from openreloc_bench.vision import vocabulary as voc
 from openreloc_bench.vision.crops import CropSet
+from openreloc_bench.vision.offline import TowerConfig
 from openreloc_bench.vision.training import (
+    TrainConfig,
     _average_precision,
     _instance_recall,
     caption_table,
     epoch_batches,
     repeat_factors,
+    train_tower,
+    training_device,
 )
 
 
@@ -112,3 +120,58 @@ def test_epoch_batches_repeat_crops_by_their_factor(scenes_per_batch: int) -> No
 def test_epoch_batches_never_return_nothing() -> None:
     batches = epoch_batches(np.zeros(5, int), 32, 4, np.random.default_rng(0))
     assert len(batches) == 1 and sorted(batches[0]) == list(range(5))
+
+
+class _FixedTexts:
+    """A text tower of fixed random unit vectors per caption (MiniLM is not needed to test the loop)."""
+
+    def __init__(self) -> None:
+        self.table: dict[str, np.ndarray] = {}
+
+    def encode(self, texts: list[str]) -> np.ndarray:
+        for t in texts:
+            if t not in self.table:
+                v = np.random.default_rng(len(self.table)).normal(size=384).astype(np.float32)
+                self.table[t] = v / np.linalg.norm(v)
+        return np.stack([self.table[t] for t in texts])
+
+
+def _two_view_crops() -> CropSet:
+    """Six objects of three colours and shapes, four views each, at 16 px."""
+    rng = np.random.default_rng(0)
+    images, labels = [], []
+    for obj, (cat, col, rgb) in enumerate([("bed", "red", (200, 30, 30)), ("sofa", "blue", (30, 30, 200)),
+                                            ("lamp", "green", (30, 200, 30))] * 2):
+        for view in range(4):
+            im = rng.integers(0, 40, (16, 16, 3)).astype(np.uint8)
+            im[3 + view : 12 + view // 2, 2 + obj : 13] = rgb
+            images.append(im)
+            labels.append((f"s{obj % 2}", ["mapping", "query"][view % 2], cat, col, obj))
+    return CropSet(np.stack(images), scene=[x[0] for x in labels], split=[x[1] for x in labels],
+                   frame=[str(i) for i in range(len(labels))], object_id=[x[4] for x in labels],
+                   category=[x[2] for x in labels], colour=[x[3] for x in labels], material=["wood"] * len(labels),
+                   description=[""] * len(labels))
+
+
+def _train(device: str) -> tuple[Any, dict[str, Any]]:
+    cfg = TrainConfig(epochs=3, pairs_per_batch=8, scenes_per_batch=0, device=device, threads=1)
+    return train_tower(_two_view_crops(), _FixedTexts(), cfg, TowerConfig(input_size=16, widths=[8, 8, 16, 16]),
+                       log=lambda _: None)
+
+
+@pytest.mark.parametrize("device", ["cpu", pytest.param("cuda", marks=pytest.mark.skipif(
+    not torch.cuda.is_available(), reason="no CUDA GPU here"))])
+def test_train_tower_runs_on_its_device_and_returns_a_cpu_tower(device: str) -> None:
+    tower, info = _train(device)
+    assert all(p.device.type == "cpu" for p in tower.parameters()) and not tower.training
+    losses = [h["loss"] for h in info["history"]]
+    assert len(losses) == 3 and np.isfinite(losses).all() and losses[-1] < losses[0]
+    if device == "cuda":  # the same initial weights and batches: the same losses up to TF32 convolutions
+        np.testing.assert_allclose(losses, [h["loss"] for h in _train("cpu")[1]["history"]], rtol=1e-2)
+
+
+@pytest.mark.parametrize("name, message", [("tpu", "unknown torch device"), ("meta", "runs on cpu or cuda")]
+                         + ([] if torch.cuda.is_available() else [("cuda", "no CUDA GPU")]))
+def test_training_device_refuses_what_cannot_train_here(name: str, message: str) -> None:
+    with pytest.raises(ConfigError, match=message):
+        training_device(name)

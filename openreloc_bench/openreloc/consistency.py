@@ -33,7 +33,7 @@ class ConsistencyConfig:
     points_per_landmark: int = 400
     """At most this many points of each landmark are drawn (a seeded subsample). 1,600 on the validation
     suite, seeds 0-2: R@50 / R@25 +0.85 / +0.85 (paired p = 0.03 / 0.003), under the adoption rule's one
-    point, so not yet the default."""
+    point, so not yet the default. (Landmarks hold at most 1,500 points: 1,600 draws them all.)"""
     candidates: int = 5
     """A landmark among an object's visual top-k counts fully; any other is weighted by ``off_candidate_weight``."""
     off_candidate_weight: float = 0.2

@@ -9,8 +9,11 @@ drawn landmarks by IoU on a coarse grid, a pair's IoU weighted down when the lan
 the object's visual candidates.
 
 The drawing is a z-buffered splat of each landmark's (subsampled) points into cells of ``stride``
-pixels. Hand-written in numpy because the map keeps points, not meshes (pyrender and open3d's
-raycasting need triangles), and because a few hundred cells per pose is all the comparison needs.
+pixels, each point a square as wide as the landmark's point spacing at its depth (``splat``): drawn as
+single cells, the points of a near landmark leave holes through which farther ones show, so a near
+object's mask is under-explained and a wall hides nothing. Hand-written in numpy because the map keeps
+points, not meshes (pyrender and open3d's raycasting need triangles), and because a few hundred
+cells per pose is all the comparison needs.
 """
 
 from __future__ import annotations
@@ -19,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
+from scipy.spatial import cKDTree
 
 
 @dataclass
@@ -31,15 +35,25 @@ class ConsistencyConfig:
     stride: int = 8
     """Pixels per cell of the label grid (8: an 80 x 60 grid at 640 x 480)."""
     points_per_landmark: int = 400
-    """At most this many points of each landmark are drawn (a seeded subsample). 1,600 on the validation
-    suite, seeds 0-2: R@50 / R@25 +0.85 / +0.85 (paired p = 0.03 / 0.003), under the adoption rule's one
-    point, so not yet the default. (Landmarks hold at most 1,500 points: 1,600 draws them all.)"""
+    """At most this many points of each landmark are drawn (a seeded subsample). Validation suite, seeds 0-2:
+    drawn as single cells, 1,600 points gave +0.85 / +0.85 R@50 / R@25 (fewer holes); with ``splat``,
+    76.7 / 66.6 against 76.5 / 66.4, so the cheaper 400 stay. (Landmarks hold at most 1,500 points:
+    1,600 draws them all.)"""
     candidates: int = 5
     """A landmark among an object's visual top-k counts fully; any other is weighted by ``off_candidate_weight``."""
     off_candidate_weight: float = 0.2
     """Weight of a mask-landmark overlap when the landmark does not look like the object."""
     min_depth: float = 0.1
     """Points nearer than this (metres) are not drawn."""
+    splat: float = 1.0
+    """Each drawn point covers a square of half-width ``splat`` x its landmark's point spacing (the median
+    distance to the nearest other drawn point of the landmark), projected at its depth. 0 = one cell per
+    point. At the true poses of 20 multi-room queries the drawn cells cover 85% of the grid instead of 32%.
+    Validation suite, seeds 0-2, R@50 / R@25: 75.3 / 66.0 -> 76.5 / 66.4 (paired p = 0.004 at 50 cm),
+    1.4 ms per drawing instead of 1.0."""
+    max_splat_cells: int = 12
+    """A point's square spans at most about this many cells per side (a point at the lens would cover the
+    image)."""
     tie_share: float = 0.1
     """Hypotheses scoring at least (1 - tie_share) of the best score tie; the lowest ICP loss among them
     wins. The grid cannot rank poses a few decimetres apart: on the smoke scene it preferred 0.2-1 m
@@ -56,6 +70,8 @@ class LabelRenderer:
                 for p in points]
         self.points = np.concatenate([np.asarray(p, np.float64).reshape(-1, 3) for p in keep]) if keep else np.zeros((0, 3))
         self.rows = np.concatenate([np.full(len(p), r) for r, p in enumerate(keep)]) if keep else np.zeros(0, int)
+        self.radius = (np.concatenate([np.full(len(p), cfg.splat * _spacing(p)) for p in keep]) if keep
+                       else np.zeros(0))  # metres: half-width of each point's square
         self.cfg = cfg
         s = cfg.stride
         self.grid = (height // s, width // s)
@@ -70,14 +86,32 @@ class LabelRenderer:
         z = X[:, 2]
         front = z > self.cfg.min_depth
         zs = np.where(front, z, 1.0)
-        u = np.floor((K[0, 0] * X[:, 0] / zs + K[0, 2]) / self.cfg.stride).astype(np.int64)
-        v = np.floor((K[1, 1] * X[:, 1] / zs + K[1, 2]) / self.cfg.stride).astype(np.int64)
-        ok = front & (u >= 0) & (u < w) & (v >= 0) & (v < h)
-        cell, depth, rows = v[ok] * w + u[ok], z[ok], self.rows[ok]
-        order = np.argsort(-depth, kind="stable")  # far to near: the nearest point's write lands last
+        s = self.cfg.stride
+        u, v = K[0, 0] * X[:, 0] / zs + K[0, 2], K[1, 1] * X[:, 1] / zs + K[1, 2]
+        r = np.minimum(self.radius * K[0, 0] / zs, 0.5 * s * self.cfg.max_splat_cells)  # pixels
+        u0, u1 = np.floor((u - r) / s), np.floor((u + r) / s)
+        v0, v1 = np.floor((v - r) / s), np.floor((v + r) / s)
+        ok = front & (u1 >= 0) & (u0 < w) & (v1 >= 0) & (v0 < h)
+        order = np.flatnonzero(ok)[np.argsort(-z[ok], kind="stable")]  # far to near: the nearest write lands last
+        lo_u, lo_v = np.maximum(u0[order], 0), np.maximum(v0[order], 0)
+        nu = (np.minimum(u1[order], w - 1) - lo_u + 1).astype(np.int64)
+        nv = (np.minimum(v1[order], h - 1) - lo_v + 1).astype(np.int64)
+        # every point's square of cells, in the points' far-to-near order
+        n = nu * nv
+        point = np.repeat(np.arange(len(order)), n)
+        k = np.arange(int(n.sum())) - np.repeat(np.cumsum(n) - n, n)
+        cu = lo_u.astype(np.int64)[point] + k % nu[point]
+        cv = lo_v.astype(np.int64)[point] + k // nu[point]
         grid = np.full(h * w, -1, np.int64)
-        grid[cell[order]] = rows[order]
+        grid[cv * w + cu] = self.rows[order][point]
         return grid.reshape(h, w)
+
+
+def _spacing(points: np.ndarray) -> float:
+    """Median distance from each point to its nearest neighbour (0 for fewer than two points)."""
+    if len(points) < 2:
+        return 0.0
+    return float(np.median(cKDTree(points).query(points, k=2)[0][:, 1]))
 
 
 def query_labels(masks: list[np.ndarray], stride: int) -> np.ndarray:

@@ -93,14 +93,14 @@ def test_nearest_landmark_wins_each_cell() -> None:
 
 @pytest.mark.parametrize(("splat", "holes"), [(0.0, True), (1.0, False)])
 def test_a_near_landmark_is_drawn_solid_and_hides_what_is_behind_it(splat: float, holes: bool) -> None:
-    """Points 4 cm apart at 0.8 m are ~4 cells apart on an 8-px grid: as single cells they let a wall
-    behind show through; as squares of their spacing they cover the landmark's whole silhouette."""
+    """Points 4 cm apart at 0.8 m fall ~1.4 cells apart on an 8-px grid (f = 229 px): as single cells they
+    let a wall behind show through; as squares of their spacing they cover the landmark's silhouette."""
     g = np.arange(-0.2, 0.2001, 0.04)
     near = np.array([[x, y, 0.8] for x in g for y in g])  # a 40 cm panel facing the camera
     wall = np.array([[x, y, 3.0] for x in np.arange(-2.0, 2.0, 0.02) for y in np.arange(-2.0, 2.0, 0.02)])
     Kc = geometry.intrinsics_from_fov(320, 240, 70.0)
     drawn = LabelRenderer([near, wall], 320, 240, ConsistencyConfig(stride=8, splat=splat)).render(np.eye(4), Kc)
-    # cells well inside the panel's silhouette (it spans about +-0.25 * f / 0.8 px around the centre)
+    # cells well inside the panel's silhouette (it spans +-0.2 * f / 0.8 px around the image centre)
     half = int(0.15 * Kc[0, 0] / 0.8 / 8)
     cy, cx = 120 // 8, 160 // 8
     inside = drawn[cy - half : cy + half, cx - half : cx + half]

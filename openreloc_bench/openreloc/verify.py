@@ -12,8 +12,8 @@ must overlap its mask's box (IoU >= ``min_iou``); the score sums each object's b
 best-scoring distinct poses are locally optimised (LO-RANSAC): the pose is fitted to its inliers'
 mask boxes (:func:`fit_boxes`), the inliers re-collected, and the poses ranked again by their score
 after it. The best one's inlier matches replace the association's, with the pose added as a coarse
-hypothesis. ``VerifyConfig.modes`` > 1 keeps the next distinct consensus sets too, each a hypothesis
-refined against its own matches.
+hypothesis. ``VerifyConfig.modes`` > 1 keeps the next distinct consensus sets too; those whose pose
+renders closest to the query (``refined_modes``) become hypotheses refined against their own matches.
 
 Why the box fit: P3P on centroids is biased, because a mask's centroid is not where its landmark's
 centre projects (the image border cuts the object, others occlude it, its back is unseen). On the
@@ -86,20 +86,24 @@ class VerifyConfig:
     far from where its landmark's centre projects, so P3P on it is biased."""
     box_scale: float = 10.0
     """Pixels: box-edge residuals beyond this count linearly (Huber), so an occluded side does not drag."""
-    modes: int = 3
+    modes: int = 16
     """Poses kept from the RANSAC, each with its own inliers: the best after local optimisation, then the
     next best whose camera is at least ``mode_separation`` from every kept one and whose inliers differ
-    from every kept one's. With ``hypothesis``, each is refined against its own matches (in the coarse hypotheses'
-    batch: :func:`~.refine.refine_poses`' ``target_sets``) and competes in the render-and-compare
-    choice. It adds coverage where the best consensus is a wrong set of look-alikes: on 71 failed
-    multi-room queries, the best-scoring sampled pose was within 1 m of the truth in 10%, one of the
-    best two modes in 25%, one of the best three in 31%. All 300 multi-room queries (gen2, oracle
-    masks, the encoder weights before e486c54), R@50 / R@25: 76.0 / 67.0 with 1, 78.0 / 69.3 with 3
-    and with 5; median query 0.34, 0.48 and 0.54 s (two queries at a time on the 2-core machine;
-    0.59 s with 3 when each mode had a batch of its own). 1 = the best consensus only. With the
-    render-and-compare's squares (``consistency.splat``), 5 modes on the validation suite, seeds 0-2:
-    77.4 / 67.1 against 76.5 / 66.4 (paired p = 0.002 at 50 cm), under the adoption rule's one point,
-    median query 0.94 s against 0.65 s two at a time: not the default."""
+    from every kept one's. With ``hypothesis``, the best and the ``refined_modes`` - 1 further ones that
+    render-and-compare best are refined against their own matches (in the coarse hypotheses' batch:
+    :func:`~.refine.refine_poses`' ``target_sets``) and compete in the render-and-compare choice. It adds
+    coverage where the best consensus is a wrong set of look-alikes: on 71 failed multi-room queries,
+    the best-scoring sampled pose was within 1 m of the truth in 10%, one of the best two modes in 25%,
+    one of the best three in 31%. 1 = the best consensus only. Validation suite (430 queries x seeds
+    0-2), R@50 / R@25 and median query two at a time: every mode refined, 3 modes 76.5 / 66.4 (0.65 s),
+    5 modes 77.4 / 67.1 (0.94 s); 3 refined of 8 modes 77.9 / 67.1 (0.69 s), of 16 modes 78.4 / 67.5
+    (0.78 s; paired against 3 modes: 2 / 26 (query, seed) pairs at 50 cm, p < 0.001; 4 / 18 at 25 cm,
+    p = 0.004). The local optimisation keeps at most ``lo_poses`` poses, so modes beyond it add nothing."""
+    refined_modes: int = 3
+    """Modes refined: the best one always, then the further modes whose *unrefined* pose explains the query
+    masks best by render-and-compare (``consistency``; with it off, the RANSAC's next best). Drawing a
+    pose costs ~1.5 ms, refining it about 0.1 s, so many modes can be screened for the price of a few.
+    A mode's local optimisation already fits its boxes, so its drawing is close to its refined one's."""
     mode_separation: float = 1.0
     """Metres between the camera centres of two kept modes (a closer pose refines into the same one)."""
     hypothesis: bool = True

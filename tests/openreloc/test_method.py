@@ -215,7 +215,11 @@ def test_the_verified_pose_is_a_hypothesis_unless_switched_off(map_dir: Path, hy
     assert res.diagnostics["verification"]["inliers"] >= 3  # verified matches are used either way
     frame = f"reference:{res.diagnostics['reference_frame']['index']}"
     sources = [h["source"] for h in res.diagnostics.get("hypotheses", [{"source": res.diagnostics["chosen"]}])]
-    assert sources == ([frame, "verified", "verified:2", "verified:3"] if hypothesis else [frame])  # 3 modes here
+    if hypothesis:  # the best mode, then at most refined_modes - 1 further ones (this view has more)
+        assert sources[:2] == [frame, "verified"] and len(sources) == 4
+        assert all(s.startswith("verified:") for s in sources[2:])
+    else:
+        assert sources == [frame]
     assert ("modes" in res.diagnostics["verification"]) == hypothesis  # without the pose, no search for further ones
 
 
@@ -235,6 +239,23 @@ def test_further_verification_modes_compete_with_their_own_matches(map_dir: Path
     assert pairs(res) != pairs(one)  # the winner's own matches are reported (and placed in the explanation)
     # ... and it was refined against them, in the same batch as the others
     assert set(res.diagnostics["refine"]["object_losses"]) == {str(mt["landmark"]) for mt in res.diagnostics["matches"]}
+
+
+@pytest.mark.parametrize("render_and_compare", [True, False])
+def test_only_the_further_modes_that_render_closest_are_refined(map_dir: Path, monkeypatch,
+                                                                 render_and_compare: bool) -> None:
+    q, _ = held_out_query()
+    # a drawing that prefers later poses: the screen must keep the last mode, not the RANSAC's next best
+    monkeypatch.setattr(method_module.OpenReLoc, "_explained", lambda self, poses, *_: [float(i) for i in range(len(poses))])
+    res = localizer(map_dir, verification={"modes": 3, "refined_modes": 2}, refinement={"max_iterations": 5},
+                    consistency={"enabled": render_and_compare}).localize(q)
+    assert isinstance(res, PoseEstimate), res
+    assert res.diagnostics["verification"]["modes"] == 3
+    sources = [h["source"] for h in res.diagnostics["hypotheses"]]
+    assert sources[-2:] == ["verified", "verified:3" if render_and_compare else "verified:2"]
+    assert ("screened" in res.diagnostics["verification"]) == render_and_compare
+    if render_and_compare:
+        assert list(res.diagnostics["verification"]["screened"]) == ["verified:2", "verified:3"]
 
 
 def test_union_of_match_sets_holds_each_pair_once() -> None:

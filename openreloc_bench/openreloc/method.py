@@ -23,7 +23,7 @@ import time
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterator, Literal
+from typing import Any, Callable, Iterator, Literal
 
 import numpy as np
 from threadpoolctl import ThreadpoolController
@@ -268,8 +268,9 @@ class OpenReLoc:
         if not hypotheses:
             return Failure("no reference frame shares a matched landmark", diag)
 
+        explained_by = self._explainer(masks, appearance, K)
         if alternatives:
-            alternatives = self._screen(alternatives, masks, appearance, K, diag, stage)
+            alternatives = self._screen(alternatives, explained_by, diag, stage)
         refining = not cfg.no_refine
         if refining or len(hypotheses) + len(alternatives) > 1:  # several without refinement: keep the best-fitting
             rcfg = cfg.refinement if refining else dataclasses.replace(cfg.refinement, max_iterations=0)
@@ -284,7 +285,7 @@ class OpenReLoc:
             explained = [0.0] * len(results)
             if cfg.consistency.enabled:
                 with stage("compare"):
-                    drawn = self._explained([r.T_wc for r in results], masks, appearance, K)
+                    drawn = explained_by([r.T_wc for r in results])
                     explained = [e if np.isfinite(r.loss) else 0.0 for r, e in zip(results, drawn)]
             best = choose_hypothesis([r.loss for r in results], explained, cfg.consistency.tie_share)
             res = results[best]
@@ -316,17 +317,18 @@ class OpenReLoc:
         diag["explanation"] = explain_pose(T, placed)
         return PoseEstimate(T, diag)
 
-    def _explained(self, poses: list[np.ndarray], masks: list[ObjectMask], appearance: np.ndarray | None,
-                   K: np.ndarray) -> list[float]:
-        """Render-and-compare score of each pose (camera-to-world) against all query masks (:mod:`.consistency`);
-        without appearance (the oracle diagnostic) every mask-landmark pair weighs 1."""
+    def _explainer(self, masks: list[ObjectMask], appearance: np.ndarray | None,
+                   K: np.ndarray) -> Callable[[list[np.ndarray]], list[float]]:
+        """The render-and-compare score (:mod:`.consistency`) of camera-to-world poses against all query
+        masks, the query's label grid and pair weights computed once; without appearance (the oracle
+        diagnostic) every mask-landmark pair weighs 1."""
         labels = query_labels([mk.mask for mk in masks], self.config.consistency.stride)
         weights = (np.ones((len(masks), len(self.ids))) if appearance is None
                    else candidate_weights(appearance, self.config.consistency))
-        return [consistency(self.renderer.render(T, K), labels, weights) for T in poses]
+        return lambda poses: [consistency(self.renderer.render(T, K), labels, weights) for T in poses]
 
-    def _screen(self, alternatives: list[tuple[str, list[Match], np.ndarray]], masks: list[ObjectMask],
-                appearance: np.ndarray | None, K: np.ndarray, diag: dict[str, Any],
+    def _screen(self, alternatives: list[tuple[str, list[Match], np.ndarray]],
+                explained_by: Callable[[list[np.ndarray]], list[float]], diag: dict[str, Any],
                 stage: Any) -> list[tuple[str, list[Match], np.ndarray]]:
         """The further verification modes worth refining (``verification.refined_modes``): those whose
         unrefined pose explains the query best by render-and-compare, or, with it switched off, the
@@ -338,7 +340,7 @@ class OpenReLoc:
         if not cfg.consistency.enabled:
             return alternatives[:room]
         with stage("compare"):
-            drawn = self._explained([T for _, _, T in alternatives], masks, appearance, K)
+            drawn = explained_by([T for _, _, T in alternatives])
         diag["verification"]["screened"] = {src: round(e, 4) for (src, _, _), e in zip(alternatives, drawn)}
         keep = sorted(np.argsort(-np.asarray(drawn), kind="stable")[:room].tolist())
         return [alternatives[j] for j in keep]

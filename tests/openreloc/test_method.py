@@ -246,7 +246,8 @@ def test_only_the_further_modes_that_render_closest_are_refined(map_dir: Path, m
                                                                  render_and_compare: bool) -> None:
     q, _ = held_out_query()
     # a drawing that prefers later poses: the screen must keep the last mode, not the RANSAC's next best
-    monkeypatch.setattr(method_module.OpenReLoc, "_explained", lambda self, poses, *_: [float(i) for i in range(len(poses))])
+    monkeypatch.setattr(method_module.OpenReLoc, "_explainer",
+                        lambda *_: lambda poses: [float(i) for i in range(len(poses))])
     res = localizer(map_dir, verification={"modes": 3, "refined_modes": 2}, refinement={"max_iterations": 5},
                     consistency={"enabled": render_and_compare}).localize(q)
     assert isinstance(res, PoseEstimate), res

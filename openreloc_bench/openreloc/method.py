@@ -254,9 +254,9 @@ class OpenReLoc:
                 # association sees every landmark; filtered ones (walls, floor) only veto the query
                 # objects that look most like them, instead of forcing those onto a valid look-alike
                 matches = associate(objects, self.ids, self.descriptors, graph, cfg.association, invalid)
-            if cfg.verification.enabled:
-                with stage("verify"):
-                    matches, verified, alternatives = self._verify(matches, objects, invalid, K, diag)
+        if cfg.verification.enabled:
+            with stage("verify"):
+                matches, verified, alternatives = self._verify(matches, objects, invalid, K, diag)
         diag["matches"] = [_match_diag(mt, objects, m) for mt in matches]
         if len(matches) < cfg.min_matches:
             return Failure(f"{len(matches)} landmark(s) associated, need at least {cfg.min_matches}", diag)
@@ -382,7 +382,9 @@ class OpenReLoc:
         cfg = self.config
         matched = {mt.query: mt for mt in matches}
         sims = np.stack([o.visual for o in objects]) @ self.descriptors.T
-        evidence = verification_evidence(objects, matched, sims, self.ids, invalid, cfg.verification.candidates)
+        # the oracle's matches are certain: the RANSAC only finds the pose they support, and no look-alikes
+        n_candidates = 1 if cfg.association.oracle else cfg.verification.candidates
+        evidence = verification_evidence(objects, matched, sims, self.ids, invalid, n_candidates)
         vcfg = cfg.verification
         if not vcfg.hypothesis or cfg.no_coarse:  # further modes come only with the verified pose: skip their search
             vcfg = dataclasses.replace(vcfg, modes=1)

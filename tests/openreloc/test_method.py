@@ -184,6 +184,8 @@ def test_oracle_association_diagnostic_matches_by_instance_id(map_dir: Path) -> 
     assert "encode" not in d["timings"] and "describe" not in d["timings"]
     sources = [h["source"] for h in d["hypotheses"]]
     assert d["chosen"] in sources and sum(s.startswith("reference:") for s in sources) == 3
+    # the RANSAC runs on the true matches too: the oracle bounds the whole method, not only its coarse stage
+    assert "verified" in sources and d["verification"]["changed"] == 0
     best = min(h["loss"] for h in d["hypotheses"] if h["loss"] is not None)
     assert d["refine"]["loss"] == pytest.approx(best)
     predicted = QueryFrame(q.name, q.color, q.K, None)

@@ -146,3 +146,21 @@ def test_extreme_points_bound_a_box_from_any_view() -> None:
         span = uv_all.max(0) - uv_all.min(0)
         # the extremes' box covers at least 90% of the true box's width and height
         assert np.all(uv_ext.max(0) - uv_ext.min(0) >= 0.9 * span)
+
+
+@pytest.mark.parametrize("twin_first", [True, False])
+def test_of_two_equally_consistent_sets_the_higher_ranked_candidates_win(world: dict, twin_first: bool) -> None:
+    # every visible box has a twin 6 m to the side: a camera 6 m to the side sees the twins exactly as the
+    # true camera sees the boxes, so only the candidates' ranks can tell the two consensus sets apart
+    offset = np.array([6.0, 0.0, 0.0])
+    visible = [b for b in world["landmarks"] if b.id in world["masks"]]
+    twins = [Box(b.id + 1000, b.category, tuple(b.lo + offset), tuple(b.hi + offset), b.color) for b in visible]
+    centers, extremes = _landmark_arrays(visible + twins)
+    n = len(visible)
+    evidence = [ObjectEvidence(world["masks"][b.id], [i + n, i] if twin_first else [i, i + n]) for i, b in enumerate(visible)]
+    res = verify_matches(evidence, centers, extremes, K, VerifyConfig(samples=300))
+    assert res is not None
+    assert res.assignment == {i: i + n if twin_first else i for i in range(n)}
+    expected = T_WC.copy()
+    expected[:3, 3] += offset if twin_first else 0.0
+    assert geometry.pose_errors(expected, res.T_wc)[0] < 0.2

@@ -43,8 +43,8 @@ class AssociationConfig:
     oracle: bool = False
     """DIAGNOSTIC ONLY, not a method setting: match each query object to the landmark whose id equals its
     dataset instance id (with oracle masks, landmark ids are instance ids), skipping encoding, uniqueness,
-    language and the scene graph. It measures the geometric stages (coarse prior, refinement)
-    independently of the encoder. Needs the oracle-mask track; results made with it are not OpenReLoc's."""
+    language and the scene graph. It measures the geometric stages (verification pose, coarse prior,
+    refinement) independently of the encoder. Needs the oracle-mask track; results made with it are not OpenReLoc's."""
 
 
 @dataclass

@@ -567,8 +567,9 @@ def _stage_timer(timings: dict[str, float]) -> Any:
 class OpenReLocOracleAssociation(OpenReLoc):
     """DIAGNOSTIC upper bound, registered as ``openreloc-oracle-association``: OpenReLoc with the
     ground-truth landmark association (``association.oracle``; oracle-mask track only). It isolates the
-    geometric stages (retrieval, refinement) from the encoder and describer, so a leaderboard can show
-    how much of OpenReLoc's error is association. Not a relocalization method in its own right."""
+    geometric stages (the verification RANSAC on the true matches, retrieval, refinement, the choice)
+    from the encoder and describer, so a leaderboard can show how much of OpenReLoc's error is
+    association. Not a relocalization method in its own right."""
 
     name = "openreloc-oracle-association"
 

@@ -90,8 +90,9 @@ class VerifyConfig:
     finds *some* look-alike overlapping most masks, and a wrong consensus of deep candidates outscored
     the right one built on the association's choices. Validation suite (430 queries x seeds 0-2), R@50 /
     R@25: 1.0 78.4 / 67.5, 0.8 79.3 / 69.1 (paired: 21 / 33 (query, seed) pairs only before / only after
-    at 50 cm, p = 0.13; 23 / 44 at 25 cm, p = 0.01), 0.65 78.3 / 69.6; median query 0.78 -> 0.68 s two
-    at a time (fewer poses reach the local optimisation's score bar)."""
+    at 50 cm, p = 0.13; 23 / 44 at 25 cm, p = 0.01), 0.65 78.3 / 69.6, 0.9 79.5 / 69.1 (against 0.8:
+    11 / 14 pairs at 50 cm); median query 0.78 -> 0.68 s two at a time (fewer poses reach the local
+    optimisation's score bar). The suites moved both ways (multi-room -1.0, single-room +3.4 at 50 cm)."""
     truncated_weight: float = 0.25
     """Relative chance of drawing an object cut by the image border into a sample: its mask centroid is
     far from where its landmark's centre projects, so P3P on it is biased."""

@@ -217,8 +217,8 @@ def test_the_verified_pose_is_a_hypothesis_unless_switched_off(map_dir: Path, hy
     assert res.diagnostics["verification"]["inliers"] >= 3  # verified matches are used either way
     frame = f"reference:{res.diagnostics['reference_frame']['index']}"
     sources = [h["source"] for h in res.diagnostics.get("hypotheses", [{"source": res.diagnostics["chosen"]}])]
-    if hypothesis:  # the best mode, then at most refined_modes - 1 further ones (this view has more)
-        assert sources[:2] == [frame, "verified"] and len(sources) == 4
+    if hypothesis:  # the best mode, then at most refined_modes - 1 further ones
+        assert sources[:2] == [frame, "verified"] and 2 < len(sources) <= 4
         assert all(s.startswith("verified:") for s in sources[2:])
     else:
         assert sources == [frame]
@@ -231,10 +231,12 @@ def test_further_verification_modes_compete_with_their_own_matches(map_dir: Path
     assert "modes" not in one.diagnostics["verification"]
     # make the last mode win, as render-and-compare would when it explains the query best
     monkeypatch.setattr(method_module, "choose_hypothesis", lambda losses, explained, tie: len(losses) - 1)
-    res = localizer(map_dir, verification={"modes": 3}, refinement={"max_iterations": 5}).localize(q)
+    # this view has three distinct consistent sets of three among the raw P3P poses (a box-fitted pose of
+    # one set lies within a metre of another's raw pose and takes its place: fitted_triples 0)
+    res = localizer(map_dir, verification={"modes": 3, "fitted_triples": 0}, refinement={"max_iterations": 5}).localize(q)
     assert isinstance(res, PoseEstimate), res
     modes = res.diagnostics["verification"]["modes"]
-    assert modes == 3  # this view has three distinct consistent sets of three
+    assert modes == 3
     sources = [h["source"] for h in res.diagnostics["hypotheses"]]
     assert sources[-modes:] == ["verified", "verified:2", "verified:3"] and res.diagnostics["chosen"] == "verified:3"
     pairs = lambda r: {(mt["query_instance"], mt["landmark"]) for mt in r.diagnostics["matches"]}  # noqa: E731
@@ -250,7 +252,8 @@ def test_only_the_further_modes_that_render_closest_are_refined(map_dir: Path, m
     # a drawing that prefers later poses: the screen must keep the last mode, not the RANSAC's next best
     monkeypatch.setattr(method_module.OpenReLoc, "_explainer",
                         lambda *_: lambda poses: [float(i) for i in range(len(poses))])
-    res = localizer(map_dir, verification={"modes": 3, "refined_modes": 2}, refinement={"max_iterations": 5},
+    res = localizer(map_dir, verification={"modes": 3, "refined_modes": 2, "fitted_triples": 0},  # three modes, as above
+                    refinement={"max_iterations": 5},
                     consistency={"enabled": render_and_compare}).localize(q)
     assert isinstance(res, PoseEstimate), res
     assert res.diagnostics["verification"]["modes"] == 3

@@ -13,8 +13,9 @@ its mask's box (IoU >= ``min_iou``); the score sums each object's best IoU, disc
 candidate's rank (``rank_weight``). The best-scoring distinct poses are locally optimised
 (LO-RANSAC): the pose is fitted to its inliers' mask boxes (:func:`fit_boxes`), the inliers
 re-collected, and the poses ranked again by their score after it. The best one's inlier matches
-replace the association's, with the pose added as a coarse hypothesis. ``VerifyConfig.modes`` > 1 keeps the next distinct consensus sets too; those whose pose
-renders closest to the query (``refined_modes``) become hypotheses refined against their own matches.
+replace the association's, with the pose added as a coarse hypothesis. ``VerifyConfig.modes`` > 1
+keeps the next distinct consensus sets too; those whose pose renders closest to the query
+(``refined_modes``) become hypotheses refined against their own matches.
 
 Why the box fit: P3P on centroids is biased, because a mask's centroid is not where its landmark's
 centre projects (the image border cuts the object, others occlude it, its back is unseen). On the
@@ -395,7 +396,9 @@ def _sample_poses(table: _CandidateTable, K: np.ndarray, samples: int,
                   rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     """P3P poses, R_cw (H, 3, 3) and t_cw (H, 3), from random triples: objects uniform, candidates
     with probability halving per rank (the association's choice is drawn about half the time). The
-    draws are vectorised; only the P3P solves loop (per-sample ``rng.choice`` was half of this stage)."""
+    draws are vectorised; only the P3P solves loop (per-sample ``rng.choice`` was half of this stage).
+    The poses of the first ``fitted_triples`` distinct triples drawn come a second time, fitted to the
+    triple's three mask boxes."""
     usable = table.usable
     k = max(len(table.by_object[q]) for q in usable)
     slots = np.full((len(usable), k), -1)  # per usable object: its flat candidate indices, padded

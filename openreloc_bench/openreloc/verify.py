@@ -105,8 +105,9 @@ class VerifyConfig:
     mask centroids is biased, and a right triple's raw pose often explains too few masks to be among
     the ``lo_poses`` starts of the local optimisation. Validation suite (430 queries x seeds 0-2), R@50 /
     R@25: 0 79.3 / 69.1, 64 80.9 / 70.5 (paired: 14 / 34 (query, seed) pairs only before / only after
-    at 50 cm, p = 0.006; 18 / 35 at 25 cm, p = 0.03), 160 80.9 / 70.5 (15 / 15 against 64); median
-    query two at a time 0.68 -> 0.77 s (64), 0.96 s (160). Each fit takes ~0.4 ms."""
+    at 50 cm, p = 0.006; 18 / 35 at 25 cm, p = 0.03), 32 80.5 / 70.3 (14 / 9 pairs against 64 at 50 cm),
+    160 80.9 / 70.5 (15 / 15); median query two at a time 0.68 -> 0.77 s (64), 0.96 s (160). Each fit
+    takes ~0.4 ms; on 300 multi-room queries alone, verification 0.20 -> 0.35 s median."""
     truncated_weight: float = 0.25
     """Relative chance of drawing an object cut by the image border into a sample: its mask centroid is
     far from where its landmark's centre projects, so P3P on it is biased."""

@@ -53,7 +53,7 @@ from openreloc_bench.openreloc.consistency import (
 from openreloc_bench.openreloc.descriptors import pad_box
 from openreloc_bench.openreloc.explain import PlacedObject, explain_pose
 from openreloc_bench.openreloc.map import ObjectMap
-from openreloc_bench.openreloc.refine import RefineConfig, RefineTarget, refine_poses
+from openreloc_bench.openreloc.refine import RefineConfig, RefineResult, RefineTarget, orbit_starts, refine_poses
 from openreloc_bench.openreloc.retrieval import CoarseConfig, pnp_prior, retrieve_reference
 from openreloc_bench.openreloc.verify import ObjectEvidence, VerifyConfig, extreme_points, verify_matches
 from openreloc_bench.vision.base import (
@@ -289,6 +289,9 @@ class OpenReLoc:
                     explained = [e if np.isfinite(r.loss) else 0.0 for r, e in zip(results, drawn)]
             best = choose_hypothesis([r.loss for r in results], explained, cfg.consistency.tie_share)
             res = results[best]
+            if refining and rcfg.restart_degrees > 0 and np.isfinite(res.loss):
+                with stage("refine"):
+                    res = self._hop(res, union, target_sets[best], objects, K, occluders, diag)
             if match_sets[best] is not matches:  # a further verification mode won: its matches explain the pose
                 matches = match_sets[best]
                 diag["matches"] = [_match_diag(mt, objects, m) for mt in matches]
@@ -316,6 +319,23 @@ class OpenReLoc:
                                objects[mt.query].phrase) for mt in matches]
         diag["explanation"] = explain_pose(T, placed)
         return PoseEstimate(T, diag)
+
+    def _hop(self, res: RefineResult, matches: list[Match], target_set: list[int], objects: list[QueryObject],
+             K: np.ndarray, occluders: np.ndarray, diag: dict[str, Any]) -> RefineResult:
+        """Basin hopping (``refinement.restart_degrees``): ``res``, the refinement of ``matches[target_set]``,
+        refined again from starts orbiting those landmarks' centre; the lowest loss wins. The same
+        ``matches`` as in its batch, so that the same points are subsampled and the losses compare."""
+        cfg, m = self.config, self.map
+        assert m is not None
+        pivot = np.mean([m.landmarks[matches[i].landmark].center for i in target_set], axis=0)
+        starts = orbit_starts(res.T_wc, pivot, cfg.refinement.restart_degrees)
+        rcfg = dataclasses.replace(cfg.refinement, max_iterations=min(cfg.refinement.max_iterations,
+                                                                      cfg.refinement.restart_iterations))
+        hops = refine_poses(starts, K, self._targets(matches, objects), rcfg, seed=cfg.seed,
+                            occluders=occluders, target_sets=[target_set] * len(starts))
+        hop = min(hops, key=lambda r: r.loss)
+        diag["restart"] = {"loss": _num(hop.loss), "won": bool(hop.loss < res.loss)}
+        return hop if hop.loss < res.loss else res
 
     def _explainer(self, masks: list[ObjectMask], appearance: np.ndarray | None,
                    K: np.ndarray) -> Callable[[list[np.ndarray]], list[float]]:

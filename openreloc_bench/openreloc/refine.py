@@ -40,6 +40,7 @@ from typing import Literal
 import cv2
 import numpy as np
 import torch
+from scipy.spatial.transform import Rotation
 
 from openreloc_bench import geometry
 
@@ -123,6 +124,20 @@ class RefineConfig:
     """Gauss-Newton: maximum iterations."""
     gn_tolerance: float = 1e-4
     """Gauss-Newton: stop when an accepted update moves less than this (metres, and radians)."""
+    restart_degrees: float = 6.0
+    """Beyond the paper (basin hopping): the chosen refined pose is refined again from four starts orbiting
+    its matched landmarks' centre by +-this many degrees (:func:`orbit_starts`), and the lowest loss
+    wins. Nearest-pixel correspondences make the loss landscape a chain of shallow basins: a sideways
+    shift plus a turn that keeps the objects in view barely changes it. Of the 25 validation queries
+    (seed 0) that ended 0.5-1 m off, 14 had right matches whose refinement started from the *truth*
+    converged within 0.2 m at a lower loss than the returned pose. Validation suite (430 queries x seeds
+    0-2), R@50 / R@25: off 80.9 / 70.5; 6 degrees 82.2 / 72.9 (paired: 4 / 22 (query, seed) pairs only
+    before / only after at 50 cm, p = 0.001; 35 / 67 at 25 cm, p = 0.002), median query two at a time
+    0.77 -> 0.99 s; with ``restart_iterations`` 60: 82.1 / 72.2 (3 / 19, p = 0.001; 30 / 52, p = 0.02),
+    0.90 s. 0 = off."""
+    restart_iterations: int = 60
+    """Step cap of each restart's refinement: they start a few degrees from a settled pose (uncapped they
+    took 133 steps on average, 0.25 s per query; capped, 0.12 s)."""
 
 
 @dataclass
@@ -545,6 +560,18 @@ def _check_target_sets(target_sets: list[list[int]], targets: list[RefineTarget]
             raise ValueError(f"target set {b} must hold indices of the {len(targets)} targets, at least one: {ts}")
         if len({targets[i].landmark_id for i in ts}) != len(ts):
             raise ValueError(f"target set {b} aligns a landmark twice: {[targets[i].landmark_id for i in ts]}")
+
+
+def orbit_starts(T_wc: np.ndarray, pivot: np.ndarray, degrees: float) -> list[np.ndarray]:
+    """Four camera-to-world poses: ``T_wc`` orbited about ``pivot`` (world point) by -``degrees`` and
+    +``degrees`` around the world's vertical axis, then around the camera's x axis. The pivot stays
+    where it was in the image, so each start keeps the matched objects in view."""
+    out = []
+    for axis in (np.array([0.0, 0.0, 1.0]), T_wc[:3, 0]):
+        for sign in (-1.0, 1.0):
+            R = Rotation.from_rotvec(np.radians(sign * degrees) * axis).as_matrix()
+            out.append(geometry.make_pose(R @ T_wc[:3, :3], pivot + R @ (T_wc[:3, 3] - pivot)))
+    return out
 
 
 def refine_pose(

@@ -45,6 +45,13 @@ def held_out_query(k: int = 0) -> tuple[QueryFrame, np.ndarray]:
     return QueryFrame(f"query/{k:06d}", rgb, K, inst), T
 
 
+def oracle_query(k: int = 3) -> tuple[QueryFrame, np.ndarray]:
+    """A held-out view with every instance (walls too): the oracle association needs no encoder."""
+    q, T = held_out_query(k)
+    _, _, inst = render(ROOM, q.K, T, HW)
+    return QueryFrame(q.name, q.color, q.K, inst), T
+
+
 def localizer(map_dir: Path, **overrides) -> object:
     m = create_method("openreloc", no_language=True, **overrides)
     m.load_map(map_dir)
@@ -173,9 +180,7 @@ def test_unknown_config_key_is_a_config_error() -> None:
 
 
 def test_oracle_association_diagnostic_matches_by_instance_id(map_dir: Path) -> None:
-    q, _ = held_out_query(3)
-    _, _, inst = render(ROOM, q.K, camera_poses(32)[7], HW)
-    q = QueryFrame(q.name, q.color, q.K, inst)  # walls too: the oracle needs no encoder
+    q, _ = oracle_query()
     m = localizer(map_dir, association={"oracle": True}, refinement={"max_iterations": 10})
     res = m.localize(q)
     assert isinstance(res, PoseEstimate), res
@@ -187,9 +192,30 @@ def test_oracle_association_diagnostic_matches_by_instance_id(map_dir: Path) -> 
     # the RANSAC runs on the true matches too: the oracle bounds the whole method, not only its coarse stage
     assert "verified" in sources and d["verification"]["changed"] == 0
     best = min(h["loss"] for h in d["hypotheses"] if h["loss"] is not None)
-    assert d["refine"]["loss"] == pytest.approx(best)
+    hop = d["restart"]  # the orbiting restarts of the chosen pose replace it only with a lower loss
+    assert d["refine"]["loss"] == pytest.approx(hop["loss"] if hop["won"] else best)
+    assert d["refine"]["loss"] <= best
     predicted = QueryFrame(q.name, q.color, q.K, None)
     assert "oracle-mask track" in m.localize(predicted).reason
+
+
+@pytest.mark.parametrize("start", ["truth", "far"])
+def test_a_restart_replaces_the_chosen_pose_only_with_a_lower_loss(map_dir: Path, monkeypatch, start: str) -> None:
+    q, T_gt = oracle_query()
+    oracle = {"oracle": True}
+    plain = localizer(map_dir, association=oracle, refinement={"max_iterations": 10, "restart_degrees": 0.0}).localize(q)
+    far = geometry.look_at([3.0, 3.0, 2.5], [6.0, 6.0, 2.5])  # sees none of the matched objects
+    monkeypatch.setattr(method_module, "orbit_starts", lambda T, pivot, degrees: [T_gt if start == "truth" else far])
+    res = localizer(map_dir, association=oracle, refinement={"max_iterations": 10}).localize(q)
+    assert isinstance(plain, PoseEstimate) and isinstance(res, PoseEstimate)
+    assert "restart" not in plain.diagnostics
+    hop = res.diagnostics["restart"]
+    if start == "truth":
+        assert hop["won"] and res.diagnostics["refine"]["loss"] < plain.diagnostics["refine"]["loss"]
+        assert not np.allclose(res.T_wc, plain.T_wc) and geometry.pose_errors(T_gt, res.T_wc)[0] < 0.15
+    else:
+        assert not hop["won"] and hop["loss"] > plain.diagnostics["refine"]["loss"]
+        np.testing.assert_array_equal(res.T_wc, plain.T_wc)
 
 
 def test_no_coarse_refines_only_the_uninformed_start(map_dir: Path) -> None:

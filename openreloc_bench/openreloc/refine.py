@@ -129,8 +129,8 @@ class RefineConfig:
     its matched landmarks' centre by +-this many degrees (:func:`orbit_starts`), and the lowest loss
     wins. Nearest-pixel correspondences make the loss landscape a chain of shallow basins: a sideways
     shift plus a turn that keeps the objects in view barely changes it. Of the 25 validation queries
-    (seed 0) that ended 0.5-1 m off, 14 had right matches whose refinement started from the *truth*
-    converged within 0.2 m at a lower loss than the returned pose. Validation suite (430 queries x seeds
+    (seed 0) that ended 0.5-1 m off, in 11 the chosen matches refined from the *truth* converged
+    within 0.2 m of it, at a lower loss than the returned pose's. Validation suite (430 queries x seeds
     0-2), R@50 / R@25: off 80.9 / 70.5; 6 degrees 82.2 / 72.9 (paired: 4 / 22 (query, seed) pairs only
     before / only after at 50 cm, p = 0.001; 35 / 67 at 25 cm, p = 0.002), median query two at a time
     0.77 -> 0.99 s; with ``restart_iterations`` 60: 82.1 / 72.2 (3 / 19, p = 0.001; 30 / 52, p = 0.02),

@@ -271,6 +271,7 @@ class _CandidateTable:
         self.box = np.array(boxes, dtype=np.float64)
         self.X = np.asarray(centers, np.float64)[self.rows]
         self.E = np.asarray(extremes, np.float64)[self.rows]
+        self.E_by_extreme = np.ascontiguousarray(self.E.transpose(2, 1, 0)).reshape(3, -1)  # (3, E*M)
         self.by_object = {q: np.flatnonzero(self.obj == q) for q in usable}
         self.pair = {(q, r): m for m, (q, r) in enumerate(zip(obj, rows))}  # (object, landmark row) -> flat index
         self.usable = usable
@@ -282,22 +283,29 @@ class _CandidateTable:
         flat = np.array([self.pair[q, row] for q, row in assignment.items()])
         return fit_boxes(self.E[flat], self.box[flat], self.K, self.size, R, t, self.cfg.box_scale)
 
-    def overlaps(self, R: np.ndarray, t: np.ndarray, chunk: int = 256) -> np.ndarray:
+    def overlaps(self, R: np.ndarray, t: np.ndarray, chunk: int = 64) -> np.ndarray:
         """(H, M) IoU of each candidate's projected box with its mask's box at each pose (R, t world to
         camera), times the candidate's rank weight; 0 below ``min_iou`` or when the landmark reaches
         behind the camera."""
         out = np.zeros((len(R), len(self.rows)))
         w, h = self.size
+        (fx, cx), (fy, cy) = self.K[0, [0, 2]], self.K[1, [1, 2]]
+        n_ext, n_cand = self.E.shape[1], self.E.shape[0]
         for s in range(0, len(R), chunk):
-            # (h, 3, M*E) camera coordinates by one batched matrix product (einsum was 5x slower)
-            Xc = (R[s : s + chunk] @ self.E.reshape(-1, 3).T + t[s : s + chunk, :, None]).reshape(-1, 3, *self.E.shape[:2])
+            # (h, 3, E, M) camera coordinates by one matrix product, the extreme points' axis before the
+            # candidates': the min / max over it combine contiguous rows (over a last axis of 14 they took
+            # half the time); ~2 MB chunks. On 8 queries: 111 -> 46 ms per call, the same IoUs to the bit.
+            n = min(chunk, len(R) - s)
+            Xc = ((R[s : s + chunk].reshape(-1, 3) @ self.E_by_extreme).reshape(n, 3, -1)
+                  + t[s : s + chunk, :, None]).reshape(n, 3, n_ext, n_cand)
             z = Xc[:, 2]
-            front = (z > 0.05).all(-1)
-            zs = np.where(z > 0.05, z, 1.0)
-            u = self.K[0, 0] * Xc[:, 0] / zs + self.K[0, 2]
-            v = self.K[1, 1] * Xc[:, 1] / zs + self.K[1, 2]
-            x0, x1 = np.clip(u.min(-1), 0, w), np.clip(u.max(-1), 0, w)
-            y0, y1 = np.clip(v.min(-1), 0, h), np.clip(v.max(-1), 0, h)
+            ahead = z > 0.05
+            front = ahead.all(1)
+            zs = np.where(ahead, z, 1.0)
+            # the principal point is added after the min / max: rounding is monotonic, so the box is the same
+            u, v = fx * Xc[:, 0] / zs, fy * Xc[:, 1] / zs
+            x0, x1 = np.clip(u.min(1) + cx, 0, w), np.clip(u.max(1) + cx, 0, w)
+            y0, y1 = np.clip(v.min(1) + cy, 0, h), np.clip(v.max(1) + cy, 0, h)
             b = self.box
             inter = (np.clip(np.minimum(x1, b[:, 2]) - np.maximum(x0, b[:, 0]), 0, None)
                      * np.clip(np.minimum(y1, b[:, 3]) - np.maximum(y0, b[:, 1]), 0, None))
@@ -339,29 +347,30 @@ def fit_boxes(extremes: np.ndarray, boxes: np.ndarray, K: np.ndarray, size: tupl
     f, c = K[[0, 1], [0, 1]], K[:2, 2]
     bound = np.concatenate([boxes[:, :2] <= 0, boxes[:, 2:] >= (w, h)], axis=1)  # (n, 4) one-sided sides
     sign = np.array([1.0, 1.0, -1.0, -1.0])  # a bound side is violated when (edge - border) * sign > 0
-    n = len(boxes)
-    rows = np.arange(n)[:, None]
+    rows = np.arange(len(boxes))[:, None]
+    axis = np.array([0, 1, 0, 1])  # the image axis of each side: x0, y0, x1, y1
+    x_side = axis == 0
+    fa = f[axis]
 
     def linearise(R: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         Xc = extremes @ R.T + t  # (n, E, 3)
         z = np.maximum(Xc[..., 2], 0.05)
         uv = f * Xc[..., :2] / z[..., None] + c
-        pick = np.stack([uv[..., 0].argmin(1), uv[..., 1].argmin(1), uv[..., 0].argmax(1), uv[..., 1].argmax(1)], 1)
-        axis = np.array([0, 1, 0, 1])
+        pick = np.concatenate([uv.argmin(1), uv.argmax(1)], axis=1)  # (n, 4): x0, y0, x1, y1's extreme point
         P = Xc[rows, pick]  # (n, 4, 3): the point defining each edge
         zp = np.maximum(P[..., 2], 0.05)
         r = uv[rows, pick, axis] - boxes
         inactive = bound & (r * sign <= 0)
         r = np.where(inactive, 0.0, r)
         # d edge / d P: f_a / z on the edge's axis, -f_a P_a / z^2 on depth
-        dP = np.zeros((n, 4, 3))
-        fa = f[axis]
-        dP[..., 0] = np.where(axis == 0, fa / zp, 0.0)
-        dP[..., 1] = np.where(axis == 1, fa / zp, 0.0)
-        dP[..., 2] = -fa * np.where(axis == 0, P[..., 0], P[..., 1]) / zp**2
-        # left perturbation: dP/domega = -[P]_x, dP/dtau = I
-        J = np.concatenate([np.cross(P, dP), dP], axis=-1)  # (n, 4, 6): d edge / d (omega, tau)
-        J = np.where(inactive[..., None], 0.0, J)
+        d0 = np.where(x_side, fa / zp, 0.0)
+        d1 = np.where(~x_side, fa / zp, 0.0)
+        d2 = -fa * np.where(x_side, P[..., 0], P[..., 1]) / zp**2
+        # left perturbation: dP/domega = -[P]_x, dP/dtau = I; P x dP written out (np.cross's own
+        # arithmetic, without its axis shuffling, which took half of this function)
+        p0, p1, p2 = P[..., 0], P[..., 1], P[..., 2]
+        J = np.stack([p1 * d2 - p2 * d1, p2 * d0 - p0 * d2, p0 * d1 - p1 * d0, d0, d1, d2], axis=-1)
+        J = np.where(inactive[..., None], 0.0, J)  # (n, 4, 6): d edge / d (omega, tau)
         return r.ravel(), J.reshape(-1, 6)
 
     def huber(r: np.ndarray) -> float:
@@ -424,7 +433,11 @@ def _sample_poses(table: _CandidateTable, K: np.ndarray, samples: int,
     to_fit = set(valid[np.sort(first)][: table.cfg.fitted_triples].tolist())  # the likeliest distinct triples
     centroids = np.stack([table.centroid[q] for q in usable])
     rvecs, tvecs = [np.zeros((0, 3))], [np.zeros((0, 3))]
+    solved: set[tuple[int, ...]] = set()
     for s in valid:
+        if (triple := tuple(flat[s].tolist())) in solved:  # drawn again: the same poses, solved and scored once
+            continue
+        solved.add(triple)
         try:
             n, rv, tv = cv2.solveP3P(X[s].reshape(-1, 1, 3), centroids[objs[s]].reshape(-1, 1, 2),
                                      K, None, flags=cv2.SOLVEPNP_P3P)

@@ -9,7 +9,14 @@ from scipy.spatial.transform import Rotation
 from tests.openreloc.boxworld import Box, render
 
 from openreloc_bench import geometry
-from openreloc_bench.openreloc.verify import ObjectEvidence, VerifyConfig, extreme_points, fit_boxes, verify_matches
+from openreloc_bench.openreloc.verify import (
+    ObjectEvidence,
+    VerifyConfig,
+    _CandidateTable,
+    extreme_points,
+    fit_boxes,
+    verify_matches,
+)
 
 HW = (240, 320)
 K = geometry.intrinsics_from_fov(HW[1], HW[0], 70.0)
@@ -145,6 +152,32 @@ def test_further_modes_leave_the_best_as_it_was_and_are_distinct_consensus_sets(
     for alt in many.alternatives:
         assert alt.inliers >= VerifyConfig().min_inliers and alt.assignment not in seen
         seen.append(alt.assignment)
+
+
+@pytest.mark.parametrize("chunk", [1, 7, 64])
+def test_overlaps_are_the_boxes_of_the_projected_extreme_points(world: dict, chunk: int) -> None:
+    evidence, _ = _evidence(world, [0, 1, 2])
+    cfg = VerifyConfig(min_iou=0.0, rank_weight=1.0)
+    table = _CandidateTable(evidence, list(range(len(evidence))), cfg.candidates, world["centers"], world["extremes"], K, cfg)
+    rng = np.random.default_rng(1)
+    poses = [geometry.invert(T_WC)] + [geometry.invert(geometry.look_at(rng.uniform(-3, 3, 3) + [0, -3, 1.5],
+                                                                        rng.uniform(-1, 1, 3))) for _ in range(20)]
+    R, t = np.stack([T[:3, :3] for T in poses]), np.stack([T[:3, 3] for T in poses])
+    got = table.overlaps(R, t, chunk)
+    for k in range(len(poses)):  # one pose and one candidate at a time, the obvious way
+        for m in range(len(table.rows)):
+            Xc = table.E[m] @ R[k].T + t[k]
+            if (Xc[:, 2] <= 0.05).any():
+                assert got[k, m] == 0.0
+                continue
+            uv = Xc[:, :2] / Xc[:, 2:] * K[[0, 1], [0, 1]] + K[:2, 2]
+            x0, y0 = np.clip(uv.min(0), 0, (HW[1], HW[0]))
+            x1, y1 = np.clip(uv.max(0), 0, (HW[1], HW[0]))
+            b = table.box[m]
+            inter = max(0.0, min(x1, b[2]) - max(x0, b[0])) * max(0.0, min(y1, b[3]) - max(y0, b[1]))
+            union = (x1 - x0) * (y1 - y0) + (b[2] - b[0]) * (b[3] - b[1]) - inter
+            assert got[k, m] == pytest.approx(inter / max(union, 1e-9), abs=1e-9)
+    assert got[0].max() > 0.5  # the true pose overlaps its objects' boxes
 
 
 def test_extreme_points_bound_a_box_from_any_view() -> None:

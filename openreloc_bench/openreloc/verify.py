@@ -349,7 +349,7 @@ def fit_boxes(extremes: np.ndarray, boxes: np.ndarray, K: np.ndarray, size: tupl
     sign = np.array([1.0, 1.0, -1.0, -1.0])  # a bound side is violated when (edge - border) * sign > 0
     rows = np.arange(len(boxes))[:, None]
     axis = np.array([0, 1, 0, 1])  # the image axis of each side: x0, y0, x1, y1
-    x_side = axis == 0
+    x_side, y_side = axis == 0, axis == 1
     fa = f[axis]
 
     def linearise(R: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -363,8 +363,9 @@ def fit_boxes(extremes: np.ndarray, boxes: np.ndarray, K: np.ndarray, size: tupl
         inactive = bound & (r * sign <= 0)
         r = np.where(inactive, 0.0, r)
         # d edge / d P: f_a / z on the edge's axis, -f_a P_a / z^2 on depth
-        d0 = np.where(x_side, fa / zp, 0.0)
-        d1 = np.where(~x_side, fa / zp, 0.0)
+        along = fa / zp
+        d0 = np.where(x_side, along, 0.0)
+        d1 = np.where(y_side, along, 0.0)
         d2 = -fa * np.where(x_side, P[..., 0], P[..., 1]) / zp**2
         # left perturbation: dP/domega = -[P]_x, dP/dtau = I; P x dP written out (np.cross's own
         # arithmetic, without its axis shuffling, which took half of this function)

@@ -55,7 +55,7 @@ from openreloc_bench.openreloc.descriptors import pad_box
 from openreloc_bench.openreloc.explain import PlacedObject, explain_pose
 from openreloc_bench.openreloc.map import ObjectMap
 from openreloc_bench.openreloc.refine import RefineConfig, RefineResult, RefineTarget, orbit_starts, refine_poses
-from openreloc_bench.openreloc.retrieval import CoarseConfig, pnp_prior, retrieve_reference
+from openreloc_bench.openreloc.retrieval import CoarseConfig, place_landmarks, pnp_prior, retrieve_reference
 from openreloc_bench.openreloc.verify import ObjectEvidence, VerifyConfig, extreme_points, verify_matches
 from openreloc_bench.vision.base import (
     ImageTextEncoder,
@@ -188,6 +188,9 @@ class OpenReLoc:
         self.descriptors = m.descriptor_matrix(self.ids)
         self.centers = np.array([m.landmarks[i].center for i in self.ids], dtype=np.float64).reshape(-1, 3)
         self.extremes = np.array([extreme_points(m.landmarks[i].points) for i in self.ids]).reshape(len(self.ids), -1, 3)
+        # (frames, landmarks): which landmarks each reference frame sees, for the place prior of the verification
+        self.frame_visibility = np.array([[i in f.boxes for i in self.ids] for f in m.reference_frames],
+                                         dtype=bool).reshape(len(m.reference_frames), len(self.ids))
         self.crop_padding = float(m.config.get("descriptors", {}).get("padding", 0.1))
         self.renderer = LabelRenderer([m.landmarks[i].points for i in self.ids], m.width, m.height, cfg.consistency,
                                       seed=cfg.seed)
@@ -410,11 +413,15 @@ class OpenReLoc:
         further modes' (source, matches, pose), with ``verification.modes`` > 1."""
         cfg = self.config
         matched = {mt.query: mt for mt in matches}
-        sims = np.stack([o.visual for o in objects]) @ self.descriptors.T
-        # the oracle's matches are certain: the RANSAC only finds the pose they support, and no look-alikes
-        n_candidates = 1 if cfg.association.oracle else cfg.verification.candidates
-        evidence = verification_evidence(objects, matched, sims, self.ids, invalid, n_candidates)
         vcfg = cfg.verification
+        sims = np.stack([o.visual for o in objects]) @ self.descriptors.T
+        if cfg.association.oracle:  # the oracle's matches are certain: the RANSAC only finds the pose they support
+            evidence = verification_evidence(objects, matched, sims, self.ids, invalid, 1)
+        elif vcfg.place_frames > 0:
+            evidence = verification_evidence(objects, matched, self._place_ranking(objects, sims, invalid), self.ids,
+                                             invalid, vcfg.candidates, association_first=False)
+        else:
+            evidence = verification_evidence(objects, matched, sims, self.ids, invalid, vcfg.candidates)
         if not vcfg.hypothesis or cfg.no_coarse:  # further modes come only with the verified pose: skip their search
             vcfg = dataclasses.replace(vcfg, modes=1)
         result = verify_matches(evidence, self.centers, self.extremes, K, vcfg, seed=cfg.seed)
@@ -441,6 +448,17 @@ class OpenReLoc:
             diag["verification"]["modes"] = 1 + len(result.alternatives)
         return out, result.T_wc, [(f"verified:{j}", as_matches(a.assignment), a.T_wc)
                                   for j, a in enumerate(result.alternatives, start=2)]
+
+    def _place_ranking(self, objects: list[QueryObject], sims: np.ndarray, invalid: frozenset[int]) -> np.ndarray:
+        """(objects, landmarks) candidate scores of the verification with its place prior
+        (``verification.place_frames``): visual plus weighted text cosine, plus ``place_bonus`` where one of
+        the reference frames looking most like the query sees the landmark."""
+        vcfg = self.config.verification
+        scores = sims.astype(np.float64)
+        if all(o.text is not None for o in objects):
+            scores = scores + vcfg.text_weight * (np.stack([o.text for o in objects]) @ self.descriptors.T)
+        scores[:, [r for r, i in enumerate(self.ids) if i in invalid]] = -np.inf
+        return scores + vcfg.place_bonus * place_landmarks(scores, self.frame_visibility, vcfg.place_frames)
 
     def _hypotheses(self, matches: list[Match], objects: list[QueryObject], K: np.ndarray,
                     diag: dict[str, Any]) -> list[tuple[str, np.ndarray]]:
@@ -502,10 +520,11 @@ def choose_hypothesis(losses: list[float], explained: list[float], tie_share: fl
 
 
 def verification_evidence(objects: list[QueryObject], matched: dict[int, Match], sims: np.ndarray, ids: list[int],
-                          invalid: frozenset[int], n_candidates: int) -> list[ObjectEvidence]:
+                          invalid: frozenset[int], n_candidates: int,
+                          association_first: bool = True) -> list[ObjectEvidence]:
     """Each query object's candidate landmark rows for the verification (``matched``: query index -> its
-    association match): its association candidates, then its visual ranking (``sims``: object x landmark
-    row), without invalid landmarks. Objects the association left out get none: it drops an object
+    association match): its association candidates (unless not ``association_first``), then its ranking by
+    ``sims`` (object x landmark row scores), without invalid landmarks. Objects the association left out get none: it drops an object
     whose best landmark is a filtered wall or floor (the object is one), and the verification must not
     give it a look-alike instead (measured on the smoke scene: walls re-matched to a fan and a window,
     3 of 8 queries lost)."""
@@ -514,7 +533,8 @@ def verification_evidence(objects: list[QueryObject], matched: dict[int, Match],
     for q, o in enumerate(objects):
         rows: list[int] = []
         if q in matched:
-            ranked = dict.fromkeys([row_of[c] for c in matched[q].candidates] + np.argsort(-sims[q], kind="stable").tolist())
+            first = [row_of[c] for c in matched[q].candidates] if association_first else []
+            ranked = dict.fromkeys(first + np.argsort(-sims[q], kind="stable").tolist())
             rows = [r for r in ranked if ids[r] not in invalid][:n_candidates]
         out.append(ObjectEvidence(o.mask, rows))
     return out

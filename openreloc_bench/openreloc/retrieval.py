@@ -119,6 +119,26 @@ def retrieve_reference(
     )
 
 
+def place_landmarks(scores: np.ndarray, visible: np.ndarray, frames: int, clip: float = 0.2) -> np.ndarray:
+    """(N,) bool: the landmarks seen by the ``frames`` reference frames that look most like the query.
+
+    ``scores`` (Q, N) are the query objects' appearance scores against the landmarks (-inf where a
+    landmark must not count), ``visible`` (F, N) which landmarks each reference frame sees. A frame
+    scores the sum over objects of how far its best-scoring visible landmark falls short of the object's
+    best overall (at most ``clip`` each, so that an object seen nowhere, a wall among them, costs every
+    frame alike): object-level place recognition, which needs no hard association. Why: a look-alike in
+    another room (a second chair, the same lamp upstairs) is the usual wrong candidate, and the right
+    room's frames hold most of a query's true landmarks."""
+    scores, visible = np.asarray(scores, np.float64), np.asarray(visible, bool)
+    if not len(visible) or not len(scores) or frames <= 0:
+        return np.zeros(visible.shape[1] if visible.ndim == 2 else 0, bool)
+    best = scores.max(1, keepdims=True)
+    within = np.where(visible[None], scores[:, None, :], -np.inf).max(2)  # (Q, F) each frame's best per object
+    shortfall = np.clip(within - best, -clip, 0.0).sum(0)
+    top = np.argsort(-shortfall, kind="stable")[:frames]
+    return visible[top].any(0)
+
+
 def solve_pnp(p3: np.ndarray, p2: np.ndarray, K: np.ndarray, ransac_threshold: float | None = None) -> np.ndarray | None:
     """T_cw from >= 4 2D-3D correspondences: SQPnP, then Levenberg-Marquardt; with ``ransac_threshold``
     (pixels) inside RANSAC and refined on its inliers (at least 4). None when OpenCV finds no finite pose."""

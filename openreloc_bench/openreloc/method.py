@@ -419,7 +419,7 @@ class OpenReLoc:
             evidence = verification_evidence(objects, matched, sims, self.ids, invalid, 1)
         elif vcfg.place_frames > 0:
             evidence = verification_evidence(objects, matched, self._place_ranking(objects, sims, invalid), self.ids,
-                                             invalid, vcfg.candidates, association_first=False)
+                                             invalid, vcfg.candidates, lead=int(vcfg.place_keeps_choice))
         else:
             evidence = verification_evidence(objects, matched, sims, self.ids, invalid, vcfg.candidates)
         if not vcfg.hypothesis or cfg.no_coarse:  # further modes come only with the verified pose: skip their search
@@ -520,11 +520,10 @@ def choose_hypothesis(losses: list[float], explained: list[float], tie_share: fl
 
 
 def verification_evidence(objects: list[QueryObject], matched: dict[int, Match], sims: np.ndarray, ids: list[int],
-                          invalid: frozenset[int], n_candidates: int,
-                          association_first: bool = True) -> list[ObjectEvidence]:
+                          invalid: frozenset[int], n_candidates: int, lead: int | None = None) -> list[ObjectEvidence]:
     """Each query object's candidate landmark rows for the verification (``matched``: query index -> its
-    association match): its association candidates (unless not ``association_first``), then its ranking by
-    ``sims`` (object x landmark row scores), without invalid landmarks. Objects the association left out get none: it drops an object
+    association match): the first ``lead`` of its association candidates (all with None), then its ranking
+    by ``sims`` (object x landmark row scores), without invalid landmarks. Objects the association left out get none: it drops an object
     whose best landmark is a filtered wall or floor (the object is one), and the verification must not
     give it a look-alike instead (measured on the smoke scene: walls re-matched to a fan and a window,
     3 of 8 queries lost)."""
@@ -533,7 +532,7 @@ def verification_evidence(objects: list[QueryObject], matched: dict[int, Match],
     for q, o in enumerate(objects):
         rows: list[int] = []
         if q in matched:
-            first = [row_of[c] for c in matched[q].candidates] if association_first else []
+            first = [row_of[c] for c in matched[q].candidates[:lead]]
             ranked = dict.fromkeys(first + np.argsort(-sims[q], kind="stable").tolist())
             rows = [r for r in ranked if ids[r] not in invalid][:n_candidates]
         out.append(ObjectEvidence(o.mask, rows))

@@ -119,6 +119,9 @@ class VerifyConfig:
     place_bonus: float = 0.1
     """Added to the appearance score of a candidate that one of the ``place_frames`` frames sees (cosines
     of right and wrong candidates differ by a few hundredths; 0.2 ranked the true landmark lower)."""
+    place_keeps_choice: bool = False
+    """With ``place_frames`` > 0, the association's choice stays each object's first candidate, the place
+    prior's ranking following it (False: the ranking alone)."""
     text_weight: float = 0.3
     """Weight of the describer's phrase (text cosine) beside the visual cosine in the candidate ranking
     and the place scores, with ``place_frames`` > 0 (0.3: 83.4% among 8 candidates without it, 84.6%

@@ -414,6 +414,8 @@ def test_verification_evidence_leaves_out_objects_the_association_dropped() -> N
     matched = {0: Match(query=0, landmark=10, visual_sim=0.2, text_sim=None, how="graph", candidates=[10])}
     evidence = verification_evidence(objects, matched, sims, ids, frozenset({30}), n_candidates=5)
     assert [e.candidates for e in evidence] == [[0, 1], []]  # rows: its match first, then by similarity
+    ranked = verification_evidence(objects, matched, sims, ids, frozenset({30}), n_candidates=5, lead=0)
+    assert [e.candidates for e in ranked] == [[1, 0], []]  # by the scores alone (the place prior's ranking)
 
 
 def test_a_query_runs_with_single_threaded_blas_and_restores_it(map_dir: Path, monkeypatch) -> None:

@@ -7,7 +7,14 @@ import pytest
 
 from openreloc_bench import geometry
 from openreloc_bench.openreloc.map import ReferenceFrame
-from openreloc_bench.openreloc.retrieval import CoarseConfig, diou_distance, pnp_prior, retrieve_reference, solve_pnp
+from openreloc_bench.openreloc.retrieval import (
+    CoarseConfig,
+    diou_distance,
+    place_landmarks,
+    pnp_prior,
+    retrieve_reference,
+    solve_pnp,
+)
 
 
 @pytest.mark.parametrize(
@@ -63,6 +70,33 @@ def test_ranked_lists_every_sharing_frame_most_shared_first() -> None:
     ]
     r = retrieve_reference(query, frames, "diou")
     assert r is not None and [f.index for f in r.ranked] == [2, 1, 0] and r.ranked[0] is r.frame
+
+
+# landmarks 0-1: a chair and a lamp in room A; 2-3: their look-alikes in room B; 4: a wall (-inf: not matchable)
+PLACE_SCORES = np.array([[0.90, 0.30, 0.92, 0.30, -np.inf],   # the chair: its room-B twin looks a little more alike
+                         [0.20, 0.80, 0.20, 0.70, -np.inf]])  # the lamp: room A's is clearly its own
+PLACE_VISIBLE = np.array([[1, 1, 0, 0, 1],    # a frame of room A
+                          [0, 0, 1, 1, 1],    # a frame of room B
+                          [0, 0, 1, 0, 0]], bool)  # room B's chair alone
+
+
+@pytest.mark.parametrize(("frames", "expected"), [(1, [1, 1, 0, 0, 1]), (2, [1, 1, 1, 1, 1]), (0, [0, 0, 0, 0, 0])])
+def test_place_landmarks_are_those_of_the_frames_explaining_every_object(frames: int, expected: list[int]) -> None:
+    """Room A's frame explains both objects within 0.02 of their best; room B's falls 0.1 short on the
+    lamp, and the frame seeing only B's chair is clipped (0.2) for the lamp: A, then B."""
+    np.testing.assert_array_equal(place_landmarks(PLACE_SCORES, PLACE_VISIBLE, frames), np.array(expected, bool))
+
+
+def test_place_landmarks_bound_what_one_object_costs_a_frame() -> None:
+    """Room A's frame sees the chair's and the lamp's own landmarks but not a third object's (0.6 short);
+    room B's sees the third object's and is 0.15 short on the chair and the lamp. Each object costs a
+    frame at most 0.2, so the frame explaining two objects outright wins (unbounded, B would: 0.3 < 0.6)."""
+    scores = np.array([[0.90, 0.30, 0.75, 0.30, -np.inf, 0.0],
+                       [0.20, 0.80, 0.20, 0.65, -np.inf, 0.0],
+                       [0.10, 0.10, 0.10, 0.10, -np.inf, 0.7]])
+    visible = np.array([[1, 1, 0, 0, 1, 0], [0, 0, 1, 1, 1, 1]], bool)
+    np.testing.assert_array_equal(place_landmarks(scores, visible, 1), [1, 1, 0, 0, 1, 0])
+    np.testing.assert_array_equal(place_landmarks(scores, visible, 1, clip=1.0), [0, 0, 1, 1, 1, 1])
 
 
 K = geometry.intrinsics_from_fov(160, 120, 60.0)

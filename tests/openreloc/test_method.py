@@ -108,6 +108,36 @@ def test_verification_stage_reports_or_stays_out(map_dir: Path) -> None:
     assert "verify" not in off.diagnostics["timings"] and "verification" not in off.diagnostics
 
 
+@pytest.mark.parametrize("keeps_choice", [False, True])
+def test_the_place_prior_ranks_the_verification_candidates(map_dir: Path, monkeypatch, keeps_choice: bool) -> None:
+    """With ``place_frames``, each kept object's candidates follow the place prior's scores (after the
+    association's first candidate with ``place_keeps_choice``), and only valid landmarks compete."""
+    seen: dict[str, object] = {}
+    spy = {name: getattr(method_module, name) for name in ("associate", "verify_matches")}
+
+    def keep(name: str):
+        def call(*args, **kwargs):
+            seen[name] = args[0] if name == "verify_matches" else spy[name](*args, **kwargs)
+            return spy[name](*args, **kwargs) if name == "verify_matches" else seen[name]
+        return call
+
+    for name in spy:
+        monkeypatch.setattr(method_module, name, keep(name))
+    m = localizer(map_dir, refinement={"max_iterations": 5}, verification={"place_frames": 2,
+                                                                            "place_keeps_choice": keeps_choice})
+    ranking = m._place_ranking
+    monkeypatch.setattr(m, "_place_ranking", lambda *a: seen.setdefault("scores", ranking(*a)))
+    m.localize(held_out_query()[0])
+    scores, evidence = seen["scores"], seen["verify_matches"]
+    choice = {mt.query: m.ids.index(mt.candidates[0]) for mt in seen["associate"]}
+    assert choice and all(not e.candidates for q, e in enumerate(evidence) if q not in choice)
+    for q, row in choice.items():
+        rows = evidence[q].candidates
+        lead = 1 if keeps_choice else 0
+        assert rows[:lead] == [row][:lead] and np.all(np.isfinite(scores[q, rows]))
+        assert np.all(np.diff(scores[q, rows[lead:]]) <= 0)
+
+
 def test_the_best_explained_hypothesis_wins(map_dir: Path) -> None:
     q, _ = held_out_query()
     on = localizer(map_dir, refinement={"max_iterations": 10}).localize(q)

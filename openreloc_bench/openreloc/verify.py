@@ -108,7 +108,7 @@ class VerifyConfig:
     at 50 cm, p = 0.006; 18 / 35 at 25 cm, p = 0.03), 32 80.5 / 70.3 (14 / 9 pairs against 64 at 50 cm),
     160 80.9 / 70.5 (15 / 15); median query two at a time 0.68 -> 0.77 s (64), 0.96 s (160). Each fit
     takes ~0.4 ms; on 300 multi-room queries alone, verification 0.20 -> 0.35 s median."""
-    place_frames: int = 0
+    place_frames: int = 3
     """Beyond the paper, off by default until the leaderboards are run with it: rank each object's
     candidates by appearance plus ``place_bonus`` for the landmarks that the ``place_frames`` reference
     frames looking most like the query see (:func:`~.retrieval.place_landmarks`), after the association's

@@ -188,7 +188,7 @@ class OpenReLoc:
         self.descriptors = m.descriptor_matrix(self.ids)
         self.centers = np.array([m.landmarks[i].center for i in self.ids], dtype=np.float64).reshape(-1, 3)
         self.extremes = np.array([extreme_points(m.landmarks[i].points) for i in self.ids]).reshape(len(self.ids), -1, 3)
-        # (frames, landmarks): which landmarks each reference frame sees, for the place prior of the verification
+        # (frames, landmarks): which landmarks each reference frame sees (the verification's place prior)
         self.frame_visibility = np.array([[i in f.boxes for i in self.ids] for f in m.reference_frames],
                                          dtype=bool).reshape(len(m.reference_frames), len(self.ids))
         self.crop_padding = float(m.config.get("descriptors", {}).get("padding", 0.1))
@@ -523,9 +523,9 @@ def verification_evidence(objects: list[QueryObject], matched: dict[int, Match],
                           invalid: frozenset[int], n_candidates: int, lead: int | None = None) -> list[ObjectEvidence]:
     """Each query object's candidate landmark rows for the verification (``matched``: query index -> its
     association match): the first ``lead`` of its association candidates (all with None), then its ranking
-    by ``sims`` (object x landmark row scores), without invalid landmarks. Objects the association left out get none: it drops an object
-    whose best landmark is a filtered wall or floor (the object is one), and the verification must not
-    give it a look-alike instead (measured on the smoke scene: walls re-matched to a fan and a window,
+    by ``sims`` (object x landmark row scores), without invalid landmarks. Objects the association left
+    out get none: it drops an object whose best landmark is a filtered wall or floor (the object is one),
+    and the verification must not give it a look-alike instead (measured on the smoke scene: walls re-matched to a fan and a window,
     3 of 8 queries lost)."""
     row_of = {lid: r for r, lid in enumerate(ids)}
     out = []

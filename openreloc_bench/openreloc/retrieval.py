@@ -16,6 +16,9 @@ the 2D ICP. The coarse stage therefore proposes several hypotheses -- the ``top_
 reference frames (all frames sharing a landmark, ranked by shared count then DIoU) and a PnP pose
 from object correspondences (mask centroids <-> landmark centres, the "rough estimate" of centre
 alignment the paper mentions) -- and the refinement keeps the one with the lowest final ICP loss.
+
+:func:`place_landmarks` ranks the reference frames by appearance alone, before any association: the
+verification's candidate ranking favours the landmarks of the best ones (``VerifyConfig.place_frames``).
 """
 
 from __future__ import annotations
@@ -133,7 +136,7 @@ def place_landmarks(scores: np.ndarray, visible: np.ndarray, frames: int, clip: 
     if not len(visible) or not len(scores) or frames <= 0:
         return np.zeros(visible.shape[1] if visible.ndim == 2 else 0, bool)
     best = scores.max(1, keepdims=True)
-    within = np.where(visible[None], scores[:, None, :], -np.inf).max(2)  # (Q, F) each frame's best per object
+    within = np.where(visible[None], scores[:, None, :], -np.inf).max(2)  # (Q, F): each frame's best
     shortfall = np.clip(within - best, -clip, 0.0).sum(0)
     top = np.argsort(-shortfall, kind="stable")[:frames]
     return visible[top].any(0)

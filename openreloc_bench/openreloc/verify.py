@@ -6,12 +6,13 @@ top-1 (measured on the multi-room suite with the offline encoder: recall@1 0.46,
 single wrong match is enough to drag the 2D ICP away. Objects have positions and extents, though:
 the true matches are the ones consistent with *one* camera pose. In the spirit of GOReloc's
 object-level RANSAC, this stage samples three query objects, one candidate landmark each (the
-association's choice most often), solves P3P from mask centroids to landmark centres (the likeliest
-triples' poses are also fitted to their three mask boxes: ``fitted_triples``), and scores every pose
-by how well it explains the objects: the box of a candidate's projected extreme points must overlap
-its mask's box (IoU >= ``min_iou``); the score sums each object's best IoU, discounted by the
-candidate's rank (``rank_weight``). The best-scoring distinct poses are locally optimised
-(LO-RANSAC): the pose is fitted to its inliers' mask boxes (:func:`fit_boxes`), the inliers
+association's choice most often; the further candidates favour the landmarks of the reference
+frames that look most like the query: ``place_frames``), solves P3P from mask centroids to landmark
+centres (the likeliest triples' poses are also fitted to their three mask boxes: ``fitted_triples``),
+and scores every pose by how well it explains the objects: the box of a candidate's projected extreme
+points must overlap its mask's box (IoU >= ``min_iou``); the score sums each object's best IoU,
+discounted by the candidate's rank (``rank_weight``). The best-scoring distinct poses are locally
+optimised (LO-RANSAC): the pose is fitted to its inliers' mask boxes (:func:`fit_boxes`), the inliers
 re-collected, and the poses ranked again by their score after it. The best one's inlier matches
 replace the association's, with the pose added as a coarse hypothesis. ``VerifyConfig.modes`` > 1
 keeps the next distinct consensus sets too; those whose pose renders closest to the query
@@ -109,15 +110,14 @@ class VerifyConfig:
     160 80.9 / 70.5 (15 / 15); median query two at a time 0.68 -> 0.77 s (64), 0.96 s (160). Each fit
     takes ~0.4 ms; on 300 multi-room queries alone, verification 0.20 -> 0.35 s median."""
     place_frames: int = 3
-    """Beyond the paper, off by default until the leaderboards are run with it: rank each object's
-    candidates by appearance plus ``place_bonus`` for the landmarks that the ``place_frames`` reference
-    frames looking most like the query see (:func:`~.retrieval.place_landmarks`), after the association's
-    choice (``place_keeps_choice``), instead of by the association's candidates, then the visual cosine;
-    0 = off. A look-alike in another room is the usual wrong candidate. Validation suite
-    (430 queries, seed 0; objects with a valid true landmark that the association kept): the true
-    landmark is the place ranking's first for 58.3% of them (visual: 50.8%, the association's choice:
-    53.7%) and among 8 candidates for 84.6% (79.3% as now), and 53 rather than 41 of the 70 missed
-    queries have three objects with it there. End to end (seeds 0-2, R@50 / R@25): 82.7 / 74.0 off,
+    """A place prior on the candidates: after the association's choice (``place_keeps_choice``), rank each
+    object's candidates by appearance plus ``place_bonus`` for the landmarks that the ``place_frames``
+    reference frames looking most like the query see (:func:`~.retrieval.place_landmarks`); 0 = the
+    association's candidates, then the visual cosine. A look-alike in another room is the usual wrong
+    candidate. Validation suite (430 queries, seed 0; objects with a valid true landmark that the
+    association kept): the true landmark is the place ranking's first for 58.3% of them (visual: 50.8%,
+    the association's choice: 53.7%) and among 8 candidates for 84.6% (79.3% with 0), and 53 rather than
+    41 of the 70 missed queries have three objects with it there. End to end (seeds 0-2, R@50 / R@25): 82.7 / 74.0 off,
     84.5 / 75.0 with 3 frames and ``place_keeps_choice`` (paired: 26 / 49 (query, seed) pairs only
     before / only after at 50 cm, p = 0.011; 43 / 56 at 25 cm, p = 0.23), 83.8 / 75.5 without it
     (38 / 52, p = 0.17; 55 / 74, p = 0.11)."""

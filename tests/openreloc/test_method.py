@@ -113,23 +113,17 @@ def test_the_place_prior_ranks_the_verification_candidates(map_dir: Path, monkey
     """With ``place_frames``, each kept object's candidates follow the place prior's scores (after the
     association's first candidate with ``place_keeps_choice``), and only valid landmarks compete."""
     seen: dict[str, object] = {}
-    spy = {name: getattr(method_module, name) for name in ("associate", "verify_matches")}
-
-    def keep(name: str):
-        def call(*args, **kwargs):
-            seen[name] = args[0] if name == "verify_matches" else spy[name](*args, **kwargs)
-            return spy[name](*args, **kwargs) if name == "verify_matches" else seen[name]
-        return call
-
-    for name in spy:
-        monkeypatch.setattr(method_module, name, keep(name))
+    associate, verify = method_module.associate, method_module.verify_matches
+    monkeypatch.setattr(method_module, "associate", lambda *a, **k: seen.setdefault("matches", associate(*a, **k)))
+    monkeypatch.setattr(method_module, "verify_matches",
+                        lambda evidence, *a, **k: verify(seen.setdefault("evidence", evidence), *a, **k))
     m = localizer(map_dir, refinement={"max_iterations": 5}, verification={"place_frames": 2,
                                                                             "place_keeps_choice": keeps_choice})
     ranking = m._place_ranking
     monkeypatch.setattr(m, "_place_ranking", lambda *a: seen.setdefault("scores", ranking(*a)))
     m.localize(held_out_query()[0])
-    scores, evidence = seen["scores"], seen["verify_matches"]
-    choice = {mt.query: m.ids.index(mt.candidates[0]) for mt in seen["associate"]}
+    scores, evidence = seen["scores"], seen["evidence"]
+    choice = {mt.query: m.ids.index(mt.candidates[0]) for mt in seen["matches"]}
     assert choice and all(not e.candidates for q, e in enumerate(evidence) if q not in choice)
     for q, row in choice.items():
         rows = evidence[q].candidates

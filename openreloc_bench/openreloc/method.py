@@ -415,13 +415,12 @@ class OpenReLoc:
         matched = {mt.query: mt for mt in matches}
         vcfg = cfg.verification
         sims = np.stack([o.visual for o in objects]) @ self.descriptors.T
-        if cfg.association.oracle:  # the oracle's matches are certain: the RANSAC only finds the pose they support
-            evidence = verification_evidence(objects, matched, sims, self.ids, invalid, 1)
-        elif vcfg.place_frames > 0:
-            evidence = verification_evidence(objects, matched, self._place_ranking(objects, sims, invalid), self.ids,
-                                             invalid, vcfg.candidates, lead=int(vcfg.place_keeps_choice))
-        else:
-            evidence = verification_evidence(objects, matched, sims, self.ids, invalid, vcfg.candidates)
+        # the oracle's matches are certain: the RANSAC only finds the pose they support, and no look-alikes
+        n_candidates = 1 if cfg.association.oracle else vcfg.candidates
+        place = vcfg.place_frames > 0 and not cfg.association.oracle
+        evidence = verification_evidence(objects, matched, self._place_ranking(objects, sims, invalid) if place else sims,
+                                         self.ids, invalid, n_candidates,
+                                         lead=int(vcfg.place_keeps_choice) if place else None)
         if not vcfg.hypothesis or cfg.no_coarse:  # further modes come only with the verified pose: skip their search
             vcfg = dataclasses.replace(vcfg, modes=1)
         result = verify_matches(evidence, self.centers, self.extremes, K, vcfg, seed=cfg.seed)
@@ -525,8 +524,8 @@ def verification_evidence(objects: list[QueryObject], matched: dict[int, Match],
     association match): the first ``lead`` of its association candidates (all with None), then its ranking
     by ``sims`` (object x landmark row scores), without invalid landmarks. Objects the association left
     out get none: it drops an object whose best landmark is a filtered wall or floor (the object is one),
-    and the verification must not give it a look-alike instead (measured on the smoke scene: walls re-matched to a fan and a window,
-    3 of 8 queries lost)."""
+    and the verification must not give it a look-alike instead (measured on the smoke scene: walls
+    re-matched to a fan and a window, 3 of 8 queries lost)."""
     row_of = {lid: r for r, lid in enumerate(ids)}
     out = []
     for q, o in enumerate(objects):

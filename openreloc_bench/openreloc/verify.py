@@ -116,8 +116,9 @@ class VerifyConfig:
     association's candidates, then the visual cosine. A look-alike in another room is the usual wrong
     candidate. Validation suite (430 queries, seed 0; objects with a valid true landmark that the
     association kept): the true landmark is the place ranking's first for 58.3% of them (visual: 50.8%,
-    the association's choice: 53.7%) and among 8 candidates for 84.6% (79.3% with 0), and 53 rather than
-    41 of the 70 missed queries have three objects with it there. End to end (seeds 0-2, R@50 / R@25): 82.7 / 74.0 off,
+    the association's choice: 53.7%); the 8 candidates, the association's choice first, hold it for 84.5%
+    (79.3% with 0), and 52 rather than 41 of the 70 missed queries have three objects with it there
+    (the ranking alone: 84.6%, 53). End to end (seeds 0-2, R@50 / R@25): 82.7 / 74.0 off,
     84.5 / 75.0 with 3 frames and ``place_keeps_choice`` (paired: 26 / 49 (query, seed) pairs only
     before / only after at 50 cm, p = 0.011; 43 / 56 at 25 cm, p = 0.23), 83.8 / 75.5 without it
     (38 / 52, p = 0.17; 55 / 74, p = 0.11)."""

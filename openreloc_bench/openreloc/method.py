@@ -518,21 +518,21 @@ def choose_hypothesis(losses: list[float], explained: list[float], tie_share: fl
     return min((i for i in finite if explained[i] >= (1.0 - tie_share) * top), key=lambda i: (losses[i], i))
 
 
-def verification_evidence(objects: list[QueryObject], matched: dict[int, Match], sims: np.ndarray, ids: list[int],
+def verification_evidence(objects: list[QueryObject], matched: dict[int, Match], scores: np.ndarray, ids: list[int],
                           invalid: frozenset[int], n_candidates: int, lead: int | None = None) -> list[ObjectEvidence]:
     """Each query object's candidate landmark rows for the verification (``matched``: query index -> its
     association match): the first ``lead`` of its association candidates (all with None), then its ranking
-    by ``sims`` (object x landmark row scores), without invalid landmarks. Objects the association left
-    out get none: it drops an object whose best landmark is a filtered wall or floor (the object is one),
-    and the verification must not give it a look-alike instead (measured on the smoke scene: walls
-    re-matched to a fan and a window, 3 of 8 queries lost)."""
+    by ``scores`` (object x landmark row: the visual cosine, or the place prior's), without invalid
+    landmarks. Objects the association left out get none: it drops an object whose best landmark is a
+    filtered wall or floor (the object is one), and the verification must not give it a look-alike
+    instead (measured on the smoke scene: walls re-matched to a fan and a window, 3 of 8 queries lost)."""
     row_of = {lid: r for r, lid in enumerate(ids)}
     out = []
     for q, o in enumerate(objects):
         rows: list[int] = []
         if q in matched:
             first = [row_of[c] for c in matched[q].candidates[:lead]]
-            ranked = dict.fromkeys(first + np.argsort(-sims[q], kind="stable").tolist())
+            ranked = dict.fromkeys(first + np.argsort(-scores[q], kind="stable").tolist())
             rows = [r for r in ranked if ids[r] not in invalid][:n_candidates]
         out.append(ObjectEvidence(o.mask, rows))
     return out

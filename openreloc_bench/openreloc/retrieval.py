@@ -134,7 +134,7 @@ def place_landmarks(scores: np.ndarray, visible: np.ndarray, frames: int, clip: 
     room's frames hold most of a query's true landmarks."""
     scores, visible = np.asarray(scores, np.float64), np.asarray(visible, bool)
     if not len(visible) or not len(scores) or frames <= 0:
-        return np.zeros(visible.shape[1] if visible.ndim == 2 else 0, bool)
+        return np.zeros(visible.shape[-1], bool)
     best = scores.max(1, keepdims=True)
     within = np.where(visible[None], scores[:, None, :], -np.inf).max(2)  # (Q, F): each frame's best
     shortfall = np.clip(within - best, -clip, 0.0).sum(0)

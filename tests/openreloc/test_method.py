@@ -127,7 +127,7 @@ def test_the_place_prior_ranks_the_verification_candidates(map_dir: Path, monkey
     assert choice and all(not e.candidates for q, e in enumerate(evidence) if q not in choice)
     for q, row in choice.items():
         rows = evidence[q].candidates
-        lead = 1 if keeps_choice else 0
+        lead = int(keeps_choice)
         assert rows[:lead] == [row][:lead] and np.all(np.isfinite(scores[q, rows]))
         assert np.all(np.diff(scores[q, rows[lead:]]) <= 0)
 

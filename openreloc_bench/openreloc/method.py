@@ -191,6 +191,9 @@ class OpenReLoc:
         # (frames, landmarks): which landmarks each reference frame sees (the verification's place prior)
         self.frame_visibility = np.array([[i in f.boxes for i in self.ids] for f in m.reference_frames],
                                          dtype=bool).reshape(len(m.reference_frames), len(self.ids))
+        # (landmarks, landmarks): which pairs some reference frame sees together (the RANSAC's guided sampling)
+        seen = self.frame_visibility.astype(np.float32)
+        self.covisible = (seen.T @ seen) > 0
         self.crop_padding = float(m.config.get("descriptors", {}).get("padding", 0.1))
         self.renderer = LabelRenderer([m.landmarks[i].points for i in self.ids], m.width, m.height, cfg.consistency,
                                       seed=cfg.seed)
@@ -423,7 +426,8 @@ class OpenReLoc:
                                          lead=int(vcfg.place_keeps_choice) if place else None)
         if not vcfg.hypothesis or cfg.no_coarse:  # further modes come only with the verified pose: skip their search
             vcfg = dataclasses.replace(vcfg, modes=1)
-        result = verify_matches(evidence, self.centers, self.extremes, K, vcfg, seed=cfg.seed)
+        result = verify_matches(evidence, self.centers, self.extremes, K, vcfg, seed=cfg.seed,
+                                covisible=self.covisible)
         if result is None:
             diag["verification"] = {"inliers": 0, "kept": "association"}
             return matches, None, []

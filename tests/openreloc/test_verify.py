@@ -13,6 +13,7 @@ from openreloc_bench.openreloc.verify import (
     ObjectEvidence,
     VerifyConfig,
     _CandidateTable,
+    draw_triples,
     extreme_points,
     fit_boxes,
     verify_matches,
@@ -210,3 +211,24 @@ def test_of_two_equally_consistent_sets_the_higher_ranked_candidates_win(world: 
     expected = T_WC.copy()
     expected[:3, 3] += offset if twin_first else 0.0
     assert geometry.pose_errors(expected, res.T_wc)[0] < 0.2
+
+
+
+def _right_share(world: dict, weight: float, covisible: np.ndarray | None) -> float:
+    """Share of 4,000 drawn triples whose three candidates are all true, the truth ranked third everywhere."""
+    evidence, truth = _evidence(world, [2])
+    cfg = VerifyConfig(covisible_weight=weight)
+    table = _CandidateTable(evidence, list(range(len(evidence))), cfg.candidates, world["centers"], world["extremes"],
+                            K, cfg)
+    objs, flat = draw_triples(table, 4000, np.random.default_rng(0), covisible)
+    return float((table.rows[flat] == np.asarray(truth)[objs]).all(1).mean())
+
+
+def test_covisibility_guides_the_draws_to_triples_seen_together(world: dict) -> None:
+    # the visible boxes are seen together, the room behind the wall's boxes together, never the two mixed
+    seen = np.array([b.id < 100 for b in world["landmarks"]])
+    covisible = seen[:, None] == seen[None, :]
+    unguided = _right_share(world, 1.0, covisible)
+    assert unguided == _right_share(world, 1.0, None)  # weight 1: the co-visibility is not even looked at
+    assert 0 < unguided < 0.01  # 0.13 ** 3 expected: the third of five is drawn with chance 0.25 / 1.94
+    assert _right_share(world, 0.05, covisible) > 10 * unguided

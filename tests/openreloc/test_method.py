@@ -132,6 +132,21 @@ def test_the_place_prior_ranks_the_verification_candidates(map_dir: Path, monkey
         assert np.all(np.diff(scores[q, rows[lead:]]) <= 0)
 
 
+def test_the_verification_draws_with_the_maps_covisibility(map_dir: Path, monkeypatch) -> None:
+    """The RANSAC's guided sampling gets which landmark pairs some reference frame sees together."""
+    seen: dict[str, object] = {}
+    verify = method_module.verify_matches
+    monkeypatch.setattr(method_module, "verify_matches",
+                        lambda *a, **k: verify(*a, **seen.setdefault("kwargs", k)))
+    m = localizer(map_dir, refinement={"max_iterations": 5})
+    m.localize(held_out_query()[0])
+    covisible, frames = seen["kwargs"]["covisible"], m.frame_visibility
+    assert covisible.shape == (len(m.ids), len(m.ids)) and np.array_equal(covisible, covisible.T)
+    a, b = np.nonzero(covisible)
+    assert len(a) < covisible.size and all((frames[:, i] & frames[:, j]).any() for i, j in zip(a, b))
+    assert all(covisible[i, j] for f in frames for i in np.flatnonzero(f) for j in np.flatnonzero(f))
+
+
 def test_the_best_explained_hypothesis_wins(map_dir: Path) -> None:
     q, _ = held_out_query()
     on = localizer(map_dir, refinement={"max_iterations": 10}).localize(q)

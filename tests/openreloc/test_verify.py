@@ -213,7 +213,6 @@ def test_of_two_equally_consistent_sets_the_higher_ranked_candidates_win(world: 
     assert geometry.pose_errors(expected, res.T_wc)[0] < 0.2
 
 
-
 def _right_share(world: dict, weight: float, covisible: np.ndarray | None) -> float:
     """Share of 4,000 drawn triples whose three candidates are all true, the truth ranked third everywhere."""
     evidence, truth = _evidence(world, [2])

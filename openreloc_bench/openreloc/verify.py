@@ -176,6 +176,11 @@ class VerifyConfig:
     ``coarse.top_frames: 1, coarse.pnp: false`` the refinement then starts from the paper's single
     reference-frame prior, so the retrieval ranking decides (the single-prior ablation rows)."""
 
+    def __post_init__(self) -> None:
+        # zero or negative chances would draw padding or nonsense triples without any error
+        if not 0.0 < self.covisible_weight <= 1.0:
+            raise ValueError(f"covisible_weight must be in (0, 1], got {self.covisible_weight}")
+
 
 @dataclass
 class Verification:

@@ -220,6 +220,12 @@ def test_unknown_config_key_is_a_config_error() -> None:
         create_method("openreloc", no_such_switch=True)
 
 
+@pytest.mark.parametrize("weight", [0.0, -0.5, 1.5])
+def test_covisible_weight_outside_its_range_is_a_config_error(weight: float) -> None:
+    with pytest.raises(ConfigError, match="covisible_weight must be in"):
+        create_method("openreloc", verification={"covisible_weight": weight})
+
+
 def test_oracle_association_diagnostic_matches_by_instance_id(map_dir: Path) -> None:
     q, _ = oracle_query()
     m = localizer(map_dir, association={"oracle": True}, refinement={"max_iterations": 10})

@@ -63,7 +63,9 @@ def main() -> int:
     fig.subplots_adjust(left=0, right=1, bottom=0, top=0.97, wspace=0, hspace=0.35)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(args.out)
-    print(f"{len(names)} categories -> {args.out}; triangles mean {np.mean(tris):.0f}, median {np.median(tris):.0f}, max {max(tris)} ({names[int(np.argmax(tris))]})")
+    print(
+        f"{len(names)} categories -> {args.out}; triangles mean {np.mean(tris):.0f}, median {np.median(tris):.0f}, max {max(tris)} ({names[int(np.argmax(tris))]})"
+    )
     return 0
 
 

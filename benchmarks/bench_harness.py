@@ -34,8 +34,14 @@ def write_scene(root: Path, name: str, n_map: int, n_query: int, w: int, h: int,
         for i in range(n):
             eye = np.r_[rng.uniform(0, 5, 2), 1.5]
             T = geometry.look_at(eye, eye + np.r_[rng.normal(size=2), 0.0])
-            sw.write_frame(split, i, rng.integers(0, 255, (h, w, 3), dtype=np.uint8), np.full((h, w), 2.0),
-                           rng.integers(0, 8, (h, w)), T)
+            sw.write_frame(
+                split,
+                i,
+                rng.integers(0, 255, (h, w, 3), dtype=np.uint8),
+                np.full((h, w), 2.0),
+                rng.integers(0, 8, (h, w)),
+                T,
+            )
 
 
 def main() -> None:
@@ -56,9 +62,14 @@ def main() -> None:
         print(f"{'mode':28s} {'wall s':>8s} {'method s':>9s} {'overhead s':>11s} {'per query ms':>13s}")
         for mode, timeout in (("in-process (--timeout 0)", 0.0), ("query server (--timeout 300)", 300.0)):
             out = Path(tmp) / f"out{timeout:g}"
-            cfg = runner.EvalConfig(data=data, out=out, scenes=names,
-                                    runs=[runner.MethodRun("nearest-frame", "nearest-frame")],
-                                    workers=args.workers, timeout_s=timeout)
+            cfg = runner.EvalConfig(
+                data=data,
+                out=out,
+                scenes=names,
+                runs=[runner.MethodRun("nearest-frame", "nearest-frame")],
+                workers=args.workers,
+                timeout_s=timeout,
+            )
             t0 = time.perf_counter()
             report = runner.evaluate(cfg)
             wall = time.perf_counter() - t0

@@ -40,7 +40,9 @@ def main() -> None:
         seq = Scene(scene).sequence(args.split)
         method.load_map(map_dir)
         # query names repeat across scenes: prefix them with the scene's
-        records += [dataclasses.replace(r, name=f"{scene.name}/{r.name}") for r in localize_split(method, seq, args.track)]
+        records += [
+            dataclasses.replace(r, name=f"{scene.name}/{r.name}") for r in localize_split(method, seq, args.track)
+        ]
         gt.update({f"{scene.name}/{n}": T for n, T in zip(seq.names, seq.poses)})
     scenes = ", ".join(s.name for s in args.scene)
     print(f"{args.method} on {scenes} / {args.split} ({args.track}, {len(records)} queries, one at a time)")

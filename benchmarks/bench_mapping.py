@@ -43,18 +43,28 @@ def bench_scene(scene_dir: Path, encoder_name: str, encoder_cfg: dict, segmenter
         freq = {int(i): f for i, f in m.stats["reference_frequency"].items()}
         by_cat = sorted(((round(f, 2), m.landmarks[i].category or "?") for i, f in freq.items()), reverse=True)
         q = m.stats["instance_quality"] or {}
-        rows.append({
-            "scene": scene_dir.name, "instances": source, "frames": len(seq),
-            "frames_skipped": len(m.stats["frames_skipped"]), "reference_frames": m.stats["reference_frames"],
-            "landmarks": len(m.landmarks), "valid": len(m.valid_ids()),
-            "precision@0.5": q.get("precision"), "recall@0.5": q.get("recall"),
-            "map_MB": size / 1e6, "MB_per_landmark": size / 1e6 / n, "time_s": wall,
-            "timings_s": m.stats["timings_s"], "invalid_categories": m.stats["invalid_categories"],
-            "frequency_by_category": by_cat,
-            "max_furniture_frequency": max((f for f, c in by_cat if c not in structural), default=0.0),
-            "structural_frequencies": [f for f, c in by_cat if c in structural],
-            "instance_reference": q.get("reference"),
-        })
+        rows.append(
+            {
+                "scene": scene_dir.name,
+                "instances": source,
+                "frames": len(seq),
+                "frames_skipped": len(m.stats["frames_skipped"]),
+                "reference_frames": m.stats["reference_frames"],
+                "landmarks": len(m.landmarks),
+                "valid": len(m.valid_ids()),
+                "precision@0.5": q.get("precision"),
+                "recall@0.5": q.get("recall"),
+                "map_MB": size / 1e6,
+                "MB_per_landmark": size / 1e6 / n,
+                "time_s": wall,
+                "timings_s": m.stats["timings_s"],
+                "invalid_categories": m.stats["invalid_categories"],
+                "frequency_by_category": by_cat,
+                "max_furniture_frequency": max((f for f, c in by_cat if c not in structural), default=0.0),
+                "structural_frequencies": [f for f, c in by_cat if c in structural],
+                "instance_reference": q.get("reference"),
+            }
+        )
     return rows
 
 
@@ -71,13 +81,17 @@ def main() -> None:
     rows = [r for s in args.scenes for r in bench_scene(s, args.encoder, enc_cfg, args.segmenter or None)]
     for r in rows:
         steps = " ".join(f"{k}={v:.1f}" for k, v in r["timings_s"].items() if k != "total")
-        print(f"{r['scene']:16s} {r['instances']:9s} frames {r['frames']} (skipped {r['frames_skipped']}, "
-              f"kept {r['reference_frames']}) landmarks {r['landmarks']} ({r['valid']} valid) "
-              f"P/R {r['precision@0.5']:.2f}/{r['recall@0.5']:.2f} map {r['map_MB']:.3f} MB "
-              f"({r['MB_per_landmark'] * 1000:.1f} kB/landmark) time {r['time_s']:.1f}s [{steps}] "
-              f"filtered: {', '.join(r['invalid_categories'])}")
-        print(f"    reference-frame frequency: structural {r['structural_frequencies']} | "
-              f"furniture max {r['max_furniture_frequency']:.2f} | top: {r['frequency_by_category'][:8]}")
+        print(
+            f"{r['scene']:16s} {r['instances']:9s} frames {r['frames']} (skipped {r['frames_skipped']}, "
+            f"kept {r['reference_frames']}) landmarks {r['landmarks']} ({r['valid']} valid) "
+            f"P/R {r['precision@0.5']:.2f}/{r['recall@0.5']:.2f} map {r['map_MB']:.3f} MB "
+            f"({r['MB_per_landmark'] * 1000:.1f} kB/landmark) time {r['time_s']:.1f}s [{steps}] "
+            f"filtered: {', '.join(r['invalid_categories'])}"
+        )
+        print(
+            f"    reference-frame frequency: structural {r['structural_frequencies']} | "
+            f"furniture max {r['max_furniture_frequency']:.2f} | top: {r['frequency_by_category'][:8]}"
+        )
     if args.out:
         args.out.write_text(json.dumps(rows, indent=1))
 

@@ -22,9 +22,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from generators.render import create_renderer  # noqa: E402  (sets MUJOCO_GL before mujoco loads)
 from generators.generate import generate_scene, render_split  # noqa: E402
 from generators.layout import build_layout  # noqa: E402
+from generators.render import create_renderer  # noqa: E402  (sets MUJOCO_GL before mujoco loads)
 from generators.spec import load_suite  # noqa: E402
 from generators.trajectories import mapping_trajectory  # noqa: E402
 from openreloc_bench import geometry  # noqa: E402
@@ -39,8 +39,10 @@ def main() -> None:
     ap.add_argument("--full", action="store_true", help="also generate the whole scene and report its wall time")
     args = ap.parse_args()
     spec = next(s for s in load_suite(args.suite).scene_specs() if s.name == args.scene)
-    print(f"scene {spec.name}: {spec.kind}, {spec.rooms} rooms x {spec.floors} floors, {spec.width}x{spec.height}, "
-          f"MUJOCO_GL={os.environ.get('MUJOCO_GL')}, load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs")
+    print(
+        f"scene {spec.name}: {spec.kind}, {spec.rooms} rooms x {spec.floors} floors, {spec.width}x{spec.height}, "
+        f"MUJOCO_GL={os.environ.get('MUJOCO_GL')}, load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs"
+    )
     t = time.perf_counter()
     layout = build_layout(spec)
     t_layout = time.perf_counter() - t
@@ -61,9 +63,11 @@ def main() -> None:
         times.append(time.perf_counter() - t)
     cpu = (time.process_time() - cpu0) / len(poses)
     times = np.array(times)
-    print(f"render RGB+depth+instances: {1 / times.mean():.1f} frames/s mean, {1 / np.median(times):.1f} median "
-          f"over {len(times)} frames; {1000 * cpu:.0f} ms CPU per frame (all threads; on an idle machine at most "
-          f"{os.cpu_count() / cpu:.0f} frames/s)")
+    print(
+        f"render RGB+depth+instances: {1 / times.mean():.1f} frames/s mean, {1 / np.median(times):.1f} median "
+        f"over {len(times)} frames; {1000 * cpu:.0f} ms CPU per frame (all threads; on an idle machine at most "
+        f"{os.cpu_count() / cpu:.0f} frames/s)"
+    )
     with tempfile.TemporaryDirectory() as tmp:
         t = time.perf_counter()
         render_split(renderer, SceneWriter(tmp), "mapping", poses, K, spec, resume=False, bar=None)

@@ -16,8 +16,8 @@ import argparse
 import os
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 import torch
@@ -47,7 +47,9 @@ def bench_encoder(label: str, enc, crops: list[np.ndarray], repeat: int) -> None
     # fresh strings each call, so the offline encoder's text cache does not hide the cost
     t = ms(lambda: enc.encode_texts([f"a small blue lamp {next(counter)}"]), repeat)
     tb = ms(lambda: enc.encode_texts([f"{x} {next(counter)}" for x in texts]), max(1, repeat // 4)) / 32
-    print(f"{label:28s} image: {b:7.2f} ms/crop (batch 32) {s:8.2f} ms (single) | text: {tb:6.2f} ms/text (batch 32) {t:7.2f} ms (single)")
+    print(
+        f"{label:28s} image: {b:7.2f} ms/crop (batch 32) {s:8.2f} ms (single) | text: {tb:6.2f} ms/text (batch 32) {t:7.2f} ms (single)"
+    )
 
 
 def mean_best_iou(objs, instance: np.ndarray, ids: list[int], min_area: float) -> list[float]:
@@ -75,20 +77,32 @@ def main() -> None:
         from generators.generate import generate_scene
         from generators.spec import TRAINING_SEED_MIN, SceneSpec
 
-        spec = SceneSpec(name="bench", seed=TRAINING_SEED_MIN + 999_999, n_query=args.frames, max_mapping_frames=8, n_displaced=0)
+        spec = SceneSpec(
+            name="bench", seed=TRAINING_SEED_MIN + 999_999, n_query=args.frames, max_mapping_frames=8, n_displaced=0
+        )
         scene_dir = generate_scene(spec, tmp, progress=False)
     scene = Scene(scene_dir)
     seq = scene.sequence("query")
     frames = [seq[i] for i in range(min(args.frames, len(seq)))]
     ids = [i for i, o in scene.objects.items() if not o.structural]
     h, w = frames[0].color.shape[:2]
-    objs = [(f, create_segmenter("gt", exclude_ids=[i for i, o in scene.objects.items() if o.structural]).segment(f.color, f.instance)) for f in frames]
+    objs = [
+        (
+            f,
+            create_segmenter("gt", exclude_ids=[i for i, o in scene.objects.items() if o.structural]).segment(
+                f.color, f.instance
+            ),
+        )
+        for f in frames
+    ]
     crops = []
     for f, masks in objs:
         crops += [object_crop(f.color, m.mask) for m in masks]
     while len(crops) < 32:
         crops += crops
-    print(f"torch threads {args.threads}; {len(frames)} frames {w}x{h} from {scene_dir}; crops of sizes {min(c.shape[0] for c in crops)}-{max(c.shape[0] for c in crops)} px")
+    print(
+        f"torch threads {args.threads}; {len(frames)} frames {w}x{h} from {scene_dir}; crops of sizes {min(c.shape[0] for c in crops)}-{max(c.shape[0] for c in crops)} px"
+    )
 
     print("\n== encoders ==")
     encoders = {}
@@ -101,7 +115,14 @@ def main() -> None:
         b32 = random_clip_checkpoint(
             tmp / "b32",
             text=dict(hidden_size=512, intermediate_size=2048, num_hidden_layers=12, num_attention_heads=8),
-            vision=dict(hidden_size=768, intermediate_size=3072, num_hidden_layers=12, num_attention_heads=12, image_size=224, patch_size=32),
+            vision=dict(
+                hidden_size=768,
+                intermediate_size=3072,
+                num_hidden_layers=12,
+                num_attention_heads=12,
+                image_size=224,
+                patch_size=32,
+            ),
             projection_dim=512,
         )
         encoders["clip (ViT-B/32 shape)"] = create_encoder("clip", model=str(b32))
@@ -115,9 +136,11 @@ def main() -> None:
             continue
         d = create_describer("offline", encoder=enc)
         d.describe(f.color, masks[0].mask)
-        t = ms(lambda: [d.describe(f.color, m.mask) for m in masks], 2) / len(masks)
-        print(f"offline describer on {label:22s} {t:7.2f} ms/description  e.g. {d.describe(f.color, masks[0].mask)!r} "
-              f"(truth: {scene.objects[masks[0].instance_id].description!r})")
+        t = ms(lambda d=d: [d.describe(f.color, m.mask) for m in masks], 2) / len(masks)
+        print(
+            f"offline describer on {label:22s} {t:7.2f} ms/description  e.g. {d.describe(f.color, masks[0].mask)!r} "
+            f"(truth: {scene.objects[masks[0].instance_id].description!r})"
+        )
         hits, colour_hits, n = 0, 0, 0
         for fr, ms_ in objs:
             for m in ms_[:10]:
@@ -127,19 +150,23 @@ def main() -> None:
                 hits += any(text.endswith(f" {x} ") for x in names)
                 colour_hits += f" {o.attributes.get('colour', '?')} " in text
                 n += 1
-        print(f"{'':43s} category noun right {hits}/{n} = {hits / n:.2f}, colour right {colour_hits / n:.2f} "
-              f"(open vocabulary of {len(d.nouns)} nouns x {len(voc.COLOURS)} colours x {len(voc.MATERIALS)} materials)")
+        print(
+            f"{'':43s} category noun right {hits}/{n} = {hits / n:.2f}, colour right {colour_hits / n:.2f} "
+            f"(open vocabulary of {len(d.nouns)} nouns x {len(voc.COLOURS)} colours x {len(voc.MATERIALS)} materials)"
+        )
 
     print(f"\n== segmenters ({w}x{h}) ==")
     for name, kw in (("gt", {}), ("noisy-gt", {"seed": 0}), ("graph", {})):
         seg = create_segmenter(name, **kw)
-        t = ms(lambda: [seg.segment(fr.color, fr.instance) for fr in frames], 1) / len(frames)
+        t = ms(lambda seg=seg: [seg.segment(fr.color, fr.instance) for fr in frames], 1) / len(frames)
         ious, n = [], 0
         for fr in frames:
             out = seg.segment(fr.color, fr.instance)
             n += len(out)
             ious += mean_best_iou(out, fr.instance, ids, 0.002 * h * w)
-        print(f"{name:10s} {t:8.1f} ms/image  {n / len(frames):5.1f} masks/image  mean best IoU vs GT {np.mean(ious):.3f} ({len(ious)} objects >= 0.2% of the image)")
+        print(
+            f"{name:10s} {t:8.1f} ms/image  {n / len(frames):5.1f} masks/image  mean best IoU vs GT {np.mean(ious):.3f} ({len(ious)} objects >= 0.2% of the image)"
+        )
 
 
 if __name__ == "__main__":

@@ -39,7 +39,17 @@ from generators.asset_library.core import (
 from generators.materials import COLOURS, MATERIALS
 from openreloc_bench.errors import ConfigError
 
-__all__ = ["Asset", "CATEGORIES", "CategorySpec", "Part", "categories_for_room", "sample_asset", "PLACEMENTS", "ROOM_KINDS", "SIZES"]
+__all__ = [
+    "Asset",
+    "CATEGORIES",
+    "CategorySpec",
+    "Part",
+    "categories_for_room",
+    "sample_asset",
+    "PLACEMENTS",
+    "ROOM_KINDS",
+    "SIZES",
+]
 
 CATEGORIES: dict[str, CategorySpec] = {name: r.spec for name, r in sorted(RECIPES.items())}
 """Every category by name."""

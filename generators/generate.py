@@ -42,20 +42,43 @@ def scene_info(spec: SceneSpec, layout: Layout, K: np.ndarray, counts: dict[str,
         "generator_version": GENERATOR_VERSION,
         "intrinsics": {"K": np.round(K, 9).tolist(), "width": spec.width, "height": spec.height, "fov_y": spec.fov_y},
         "footprint": [round(v, 5) for v in layout.footprint],
-        "floors": [{"index": f, "z": round(z, 5), "ceiling_height": layout.ceiling_height} for f, z in enumerate(layout.floor_z)],
-        "rooms": [{"name": r.name, "kind": r.kind, "floor": r.floor, "rect": [round(v, 5) for v in r.rect],
-                   "z0": round(r.z0, 5)} for r in layout.rooms],
-        "doors": [{"floor": d.floor, "centre": np.round(d.centre, 5).tolist(), "axis": d.axis, "rooms": list(d.rooms)}
-                  for d in layout.doors],
-        "lights": [{"index": k, "pos": np.round(li.pos, 5).tolist(), "room": li.room, "floor": li.floor}
-                   for k, li in enumerate(layout.lights)],
+        "floors": [
+            {"index": f, "z": round(z, 5), "ceiling_height": layout.ceiling_height}
+            for f, z in enumerate(layout.floor_z)
+        ],
+        "rooms": [
+            {
+                "name": r.name,
+                "kind": r.kind,
+                "floor": r.floor,
+                "rect": [round(v, 5) for v in r.rect],
+                "z0": round(r.z0, 5),
+            }
+            for r in layout.rooms
+        ],
+        "doors": [
+            {"floor": d.floor, "centre": np.round(d.centre, 5).tolist(), "axis": d.axis, "rooms": list(d.rooms)}
+            for d in layout.doors
+        ],
+        "lights": [
+            {"index": k, "pos": np.round(li.pos, 5).tolist(), "room": li.room, "floor": li.floor}
+            for k, li in enumerate(layout.lights)
+        ],
         "splits": counts,
         **extra,
     }
 
 
-def render_split(renderer: Renderer, writer: SceneWriter, split: str, poses: np.ndarray, K: np.ndarray,
-                  spec: SceneSpec, resume: bool, bar: tqdm | None) -> int:
+def render_split(
+    renderer: Renderer,
+    writer: SceneWriter,
+    split: str,
+    poses: np.ndarray,
+    K: np.ndarray,
+    spec: SceneSpec,
+    resume: bool,
+    bar: tqdm | None,
+) -> int:
     """Render and write one split; returns the number of frames reused from a previous run.
 
     PNG encoding and writing of frame i overlap the rendering of frame i+1 (one writer thread; cv2
@@ -93,7 +116,9 @@ def generate_scene(spec: SceneSpec, out_dir: Path | str, resume: bool = False, p
         if not info_path.exists() and any(root.iterdir()):
             raise ConfigError(f"{root}: exists and is not a generated scene; refusing to overwrite")
         if resume and info_path.exists() and io.read_json(info_path).get("spec_hash") != spec_hash(spec):
-            raise ConfigError(f"{root}: was generated from a different spec; cannot resume (delete it or drop --resume)")
+            raise ConfigError(
+                f"{root}: was generated from a different spec; cannot resume (delete it or drop --resume)"
+            )
         if not resume:
             shutil.rmtree(root)
         else:
@@ -107,7 +132,10 @@ def generate_scene(spec: SceneSpec, out_dir: Path | str, resume: bool = False, p
         queries, qinfo = sample_queries(layout, spec, mapping, renderer)
         displacements = sample_displacements(layout, spec, queries[:, :3, 3])
         lights = light_variants(spec, len(layout.lights))
-        splits: dict[str, tuple[np.ndarray, Lighting]] = {"mapping": (mapping, Lighting()), "query": (queries, Lighting())}
+        splits: dict[str, tuple[np.ndarray, Lighting]] = {
+            "mapping": (mapping, Lighting()),
+            "query": (queries, Lighting()),
+        }
         splits.update({s: (queries, lights[s]) for s in LIGHT_SPLITS})
         splits["query_displaced"] = (queries, Lighting())
         counts = {s: len(p) for s, (p, _) in splits.items()}
@@ -140,18 +168,23 @@ def _worker(spec_dict: dict, out_dir: str, resume: bool) -> str:
     return str(generate_scene(spec, out_dir, resume=resume, progress=False))
 
 
-def generate_suite(suite: SuiteSpec, out_dir: Path | str, resume: bool = False, workers: int = 1,
-                   only: list[str] | None = None) -> list[Path]:
+def generate_suite(
+    suite: SuiteSpec, out_dir: Path | str, resume: bool = False, workers: int = 1, only: list[str] | None = None
+) -> list[Path]:
     """Generate every scene of ``suite`` (or the named ones) into ``out_dir``; returns the scene dirs."""
     specs = suite.scene_specs()
     if only:
         unknown = sorted(set(only) - {s.name for s in specs})
         if unknown:
-            raise ConfigError(f"unknown scene '{unknown[0]}' in --scenes (suite has: {', '.join(s.name for s in specs)})")
+            raise ConfigError(
+                f"unknown scene '{unknown[0]}' in --scenes (suite has: {', '.join(s.name for s in specs)})"
+            )
         specs = [s for s in specs if s.name in only]
     out_dir = Path(out_dir)
     if workers <= 1 or len(specs) == 1:
-        return [generate_scene(s, out_dir, resume=resume, progress=True) for s in tqdm(specs, desc=suite.name, unit="scene")]
+        return [
+            generate_scene(s, out_dir, resume=resume, progress=True) for s in tqdm(specs, desc=suite.name, unit="scene")
+        ]
     done: dict[str, Path] = {}
     ctx = mp.get_context("spawn")
     with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:

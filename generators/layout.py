@@ -40,8 +40,15 @@ DOOR_W, DOOR_H = 0.9, 2.1
 CORRIDOR_W = 1.6
 STAIR_LEN, STAIR_W = 4.0, 1.0
 ROOM_KINDS_NO_CORRIDOR = ("bedroom", "kitchen", "living", "office", "bathroom", "dining")
-_FLOOR_MATERIAL = {"bedroom": "wood", "living": "wood", "office": "wood", "dining": "wood",
-                   "kitchen": "ceramic", "bathroom": "ceramic", "corridor": "stone"}
+_FLOOR_MATERIAL = {
+    "bedroom": "wood",
+    "living": "wood",
+    "office": "wood",
+    "dining": "wood",
+    "kitchen": "ceramic",
+    "bathroom": "ceramic",
+    "corridor": "stone",
+}
 GRID_RES = 0.1
 """Free-space grid cell size (m)."""
 WALL_CLEARANCE = 0.35
@@ -123,8 +130,12 @@ class Instance:
     local_bounds: np.ndarray = field(default_factory=lambda: np.zeros((2, 3)))
 
     def __post_init__(self) -> None:
-        self.local_bounds = np.array([np.min([p.mesh.bounds[0] for p in self.parts], axis=0),
-                                      np.max([p.mesh.bounds[1] for p in self.parts], axis=0)])
+        self.local_bounds = np.array(
+            [
+                np.min([p.mesh.bounds[0] for p in self.parts], axis=0),
+                np.max([p.mesh.bounds[1] for p in self.parts], axis=0),
+            ]
+        )
 
     @cached_property
     def aabb(self) -> np.ndarray:
@@ -141,8 +152,15 @@ class Instance:
         attrs = dict(self.attributes)
         attrs["placement"] = self.placement
         return ObjectInfo(
-            id=self.id, category=self.category, description=self.description, attributes=attrs, room=self.room,
-            floor=self.floor, structural=self.structural, aabb=aabb.tolist(), transform=np.round(T, 9).tolist(),
+            id=self.id,
+            category=self.category,
+            description=self.description,
+            attributes=attrs,
+            room=self.room,
+            floor=self.floor,
+            structural=self.structural,
+            aabb=aabb.tolist(),
+            transform=np.round(T, 9).tolist(),
         )
 
 
@@ -189,8 +207,9 @@ def box_mesh(lo: np.ndarray | tuple, hi: np.ndarray | tuple) -> trimesh.Trimesh:
     return trimesh.creation.box(extents=hi - lo, transform=trimesh.transformations.translation_matrix((lo + hi) / 2))
 
 
-def _slab_with_holes(rect: tuple[float, float, float, float], z0: float, z1: float,
-                     holes: list[tuple[float, float, float, float]]) -> list[trimesh.Trimesh]:
+def _slab_with_holes(
+    rect: tuple[float, float, float, float], z0: float, z1: float, holes: list[tuple[float, float, float, float]]
+) -> list[trimesh.Trimesh]:
     """Boxes covering ``rect`` minus rectangular ``holes`` (grid decomposition on the holes' edges)."""
     x0, y0, x1, y1 = rect
     xs = sorted({x0, x1, *[min(max(h[i], x0), x1) for h in holes for i in (0, 2)]})
@@ -198,7 +217,7 @@ def _slab_with_holes(rect: tuple[float, float, float, float], z0: float, z1: flo
     boxes = []
     for xa, xb in zip(xs, xs[1:]):
         run_start = None
-        for j, (ya, yb) in enumerate(zip(ys, ys[1:])):
+        for ya, yb in zip(ys, ys[1:]):
             cx, cy = (xa + xb) / 2, (ya + yb) / 2
             inside = any(h[0] < cx < h[2] and h[1] < cy < h[3] for h in holes)
             if not inside and run_start is None:
@@ -211,8 +230,15 @@ def _slab_with_holes(rect: tuple[float, float, float, float], z0: float, z1: flo
     return [b for b in boxes if min(b.extents) > 1e-6]
 
 
-def free_space(xs: np.ndarray, ys: np.ndarray, rooms: list[Room], doors: list[Door], boxes: np.ndarray,
-               blocked: list[tuple[float, float, float, float]], z0: float) -> np.ndarray:
+def free_space(
+    xs: np.ndarray,
+    ys: np.ndarray,
+    rooms: list[Room],
+    doors: list[Door],
+    boxes: np.ndarray,
+    blocked: list[tuple[float, float, float, float]],
+    z0: float,
+) -> np.ndarray:
     """Where a camera may stand on a grid of cell centres (xs, ys): inside a room away from its walls,
     through doorways, and at least OBJECT_CLEARANCE from any obstructing object box or blocked rect.
 
@@ -301,7 +327,9 @@ def _plan_strips(spec: SceneSpec, rng: np.random.Generator) -> dict:
     if n_bot:
         L = max(L, n_bot * spec.room_side_min)
     shape = {
-        "L": L, "corridor": corridor, "top_first": widths[0],
+        "L": L,
+        "corridor": corridor,
+        "top_first": widths[0],
         "d_top": float(rng.uniform(spec.room_side_min, spec.room_side_max)),
         "d_bot": float(rng.uniform(spec.room_side_min, spec.room_side_max)) if n_bot else 0.0,
     }
@@ -321,8 +349,11 @@ def _floor_cells(spec: SceneSpec, shape: dict, counts: tuple[int, int], rng: np.
     kinds: list[str] = []
     y_top0 = d_bot + c
     first = shape["top_first"]
-    top_w = [first] + (_split_length(L - first, n_top - 1, min(spec.room_side_min, (L - first) / max(n_top - 1, 1)), rng)
-                       if n_top > 1 else [])
+    top_w = [first] + (
+        _split_length(L - first, n_top - 1, min(spec.room_side_min, (L - first) / max(n_top - 1, 1)), rng)
+        if n_top > 1
+        else []
+    )
     if n_top == 1:
         top_w = [L]
     x = 0.0
@@ -332,8 +363,9 @@ def _floor_cells(spec: SceneSpec, shape: dict, counts: tuple[int, int], rng: np.
     if n_bot:
         bot_w = _split_length(L, n_bot, min(spec.room_side_min, L / n_bot), rng)
         if spec.kind == "multi-floor" and n_bot > 1 and bot_w[0] < STAIR_LEN + 0.6:
-            bot_w = [STAIR_LEN + 0.6] + _split_length(L - STAIR_LEN - 0.6, n_bot - 1,
-                                                      min(spec.room_side_min, (L - STAIR_LEN - 0.6) / (n_bot - 1)), rng)
+            bot_w = [STAIR_LEN + 0.6] + _split_length(
+                L - STAIR_LEN - 0.6, n_bot - 1, min(spec.room_side_min, (L - STAIR_LEN - 0.6) / (n_bot - 1)), rng
+            )
         x = 0.0
         for w in bot_w:
             cells.append((x, 0.0, x + w, d_bot))
@@ -403,8 +435,9 @@ class _Builder:
             for room in self.rooms_on(f):
                 self._furnish(room)
         floor_z = [f * self.storey for f in range(spec.floors)]
-        return Layout(self.rooms, self.doors, self.lights, self.instances, footprint, floor_z,
-                      spec.ceiling_height, self.blocked)
+        return Layout(
+            self.rooms, self.doors, self.lights, self.instances, footprint, floor_z, spec.ceiling_height, self.blocked
+        )
 
     def rooms_on(self, f: int) -> list[Room]:
         return [r for r in self.rooms if r.floor == f]
@@ -421,7 +454,7 @@ class _Builder:
             name = f"f{f}_{kind}_{counters[kind]}" if spec.floors > 1 else f"{kind}_{counters[kind]}"
             names.append(name)
             self.rooms.append(Room(name, kind, f, (cell[0] + h, cell[1] + h, cell[2] - h, cell[3] - h), z0, H))
-        rooms = self.rooms[-len(plan.cells):]
+        rooms = self.rooms[-len(plan.cells) :]
         wall_colour = {r.name: _WALL_COLOURS[int(rng.integers(len(_WALL_COLOURS)))] for r in rooms}
         # stairs: up from this floor (in the first cell of the top / bottom strip), opening from below
         holes_floor: dict[int, list] = {i: [] for i in range(len(rooms))}
@@ -429,8 +462,11 @@ class _Builder:
         stair_here = None
         if f < spec.floors - 1:
             top = f % 2 == 0 or not any(cell[1] == 0.0 for cell in plan.cells)
-            idx = next(i for i, cell in enumerate(plan.cells) if (cell[3] == footprint[1] if top else cell[1] == 0.0)
-                       and plan.kinds[i] != "corridor")
+            idx = next(
+                i
+                for i, cell in enumerate(plan.cells)
+                if (cell[3] == footprint[1] if top else cell[1] == 0.0) and plan.kinds[i] != "corridor"
+            )
             r = rooms[idx].rect
             sx0 = r[0] + 0.3
             rect = (sx0, r[3] - STAIR_W, sx0 + STAIR_LEN, r[3]) if top else (sx0, r[1], sx0 + STAIR_LEN, r[1] + STAIR_W)
@@ -448,12 +484,33 @@ class _Builder:
         for i, (cell, room) in enumerate(zip(plan.cells, rooms)):
             fkind = _FLOOR_MATERIAL[room.kind]
             fcol = _FLOOR_COLOURS[int(rng.integers(len(_FLOOR_COLOURS)))]
-            self.add(category="floor", parts=[_part(_slab_with_holes(cell, z0 - SLAB_T, z0, holes_floor[i]), fkind, fcol, self.tex_seed())],
-                     transform=np.eye(4), structural=True, room=room.name, floor=f,
-                     description=f"a {fcol} {fkind} floor", attributes={"colour": fcol, "material": fkind})
-            self.add(category="ceiling", parts=[_part(_slab_with_holes(cell, z0 + H, z0 + H + SLAB_T, holes_ceiling[i]), "plaster", "white", self.tex_seed())],
-                     transform=np.eye(4), structural=True, room=room.name, floor=f,
-                     description="a white plaster ceiling", attributes={"colour": "white", "material": "plaster"})
+            self.add(
+                category="floor",
+                parts=[_part(_slab_with_holes(cell, z0 - SLAB_T, z0, holes_floor[i]), fkind, fcol, self.tex_seed())],
+                transform=np.eye(4),
+                structural=True,
+                room=room.name,
+                floor=f,
+                description=f"a {fcol} {fkind} floor",
+                attributes={"colour": fcol, "material": fkind},
+            )
+            self.add(
+                category="ceiling",
+                parts=[
+                    _part(
+                        _slab_with_holes(cell, z0 + H, z0 + H + SLAB_T, holes_ceiling[i]),
+                        "plaster",
+                        "white",
+                        self.tex_seed(),
+                    )
+                ],
+                transform=np.eye(4),
+                structural=True,
+                room=room.name,
+                floor=f,
+                description="a white plaster ceiling",
+                attributes={"colour": "white", "material": "plaster"},
+            )
         if stair_here is not None:
             self._stairs(rooms[stair_here[0]], stair_here[1], stair_here[2], z0)
             self.blocked.append((f, stair_here[1]))
@@ -480,7 +537,9 @@ class _Builder:
             for _ in range(20):
                 centre = float(rng.uniform(lo + 0.4 + DOOR_W / 2, hi - 0.4 - DOOR_W / 2))
                 p = np.array([centre, fixed]) if axis == 0 else np.array([fixed, centre])
-                clear = all(not (s[0] - 0.9 < p[0] < s[2] + 0.9 and s[1] - 0.9 < p[1] < s[3] + 0.9) for s in stair_rects)
+                clear = all(
+                    not (s[0] - 0.9 < p[0] < s[2] + 0.9 and s[1] - 0.9 < p[1] < s[3] + 0.9) for s in stair_rects
+                )
                 if clear:
                     break
             doors_on_line.append((axis, fixed, centre - DOOR_W / 2, centre + DOOR_W / 2))
@@ -501,8 +560,12 @@ class _Builder:
         rng = self.rng
         lines: dict[tuple[int, float], set[float]] = {}
         for cell in plan.cells:
-            for axis, fixed, lo, hi in ((0, cell[1], cell[0], cell[2]), (0, cell[3], cell[0], cell[2]),
-                                         (1, cell[0], cell[1], cell[3]), (1, cell[2], cell[1], cell[3])):
+            for axis, fixed, lo, hi in (
+                (0, cell[1], cell[0], cell[2]),
+                (0, cell[3], cell[0], cell[2]),
+                (1, cell[0], cell[1], cell[3]),
+                (1, cell[2], cell[1], cell[3]),
+            ):
                 key = (axis, round(fixed, 6))
                 lines.setdefault(key, set()).update((round(lo, 6), round(hi, 6)))
         h = WALL_T / 2
@@ -516,7 +579,11 @@ class _Builder:
                     sides.append(next((r for r in rooms if r.contains_xy(probe)), None))
                 if sides[0] is None and sides[1] is None:
                     continue
-                holes = [(o[2], o[3]) for o in openings if o[0] == axis and abs(o[1] - fixed) < 1e-6 and a <= o[2] and o[3] <= b]
+                holes = [
+                    (o[2], o[3])
+                    for o in openings
+                    if o[0] == axis and abs(o[1] - fixed) < 1e-6 and a <= o[2] and o[3] <= b
+                ]
                 outer = sides[0] is None or sides[1] is None
                 window = None
                 if outer and not holes and b - a > 2.2 and rng.random() < 0.7:
@@ -535,13 +602,26 @@ class _Builder:
                 outer_side = [k for k in (0, 1) if sides[k] is None]
                 for k in outer_side:  # exterior face: plain grey render
                     off = (-h, 0.0) if k == 0 else (0.0, h)
-                    parts.append(_part(self._wall_pieces(axis, fixed + off[0], fixed + off[1], ea, eb, holes, z0, H),
-                                       "plaster", "light grey", self.tex_seed()))
+                    parts.append(
+                        _part(
+                            self._wall_pieces(axis, fixed + off[0], fixed + off[1], ea, eb, holes, z0, H),
+                            "plaster",
+                            "light grey",
+                            self.tex_seed(),
+                        )
+                    )
                 named = [s.name for s in sides if s is not None]
-                self.add(category="wall", parts=parts, transform=np.eye(4), structural=True, room=named[0], floor=f,
-                                description=f"a {wall_colour[named[0]]} plaster wall",
-                                attributes={"colour": wall_colour[named[0]], "material": "plaster", "rooms": ",".join(named)})
-                for (lo, hi) in holes:
+                self.add(
+                    category="wall",
+                    parts=parts,
+                    transform=np.eye(4),
+                    structural=True,
+                    room=named[0],
+                    floor=f,
+                    description=f"a {wall_colour[named[0]]} plaster wall",
+                    attributes={"colour": wall_colour[named[0]], "material": "plaster", "rooms": ",".join(named)},
+                )
+                for lo, hi in holes:
                     self._door_frame(axis, fixed, lo, hi, z0, f, named)
                 if window is not None:
                     inside = 0 if sides[0] is not None else 1
@@ -550,8 +630,10 @@ class _Builder:
     @staticmethod
     def _wall_pieces(axis, t0, t1, a, b, holes, z0, H) -> list[trimesh.Trimesh]:
         """Boxes of one wall face layer between along-wall coords a..b, thickness t0..t1, with door holes."""
+
         def mk(u0, u1, za, zb):
             return box_mesh((u0, t0, za), (u1, t1, zb)) if axis == 0 else box_mesh((t0, u0, za), (t1, u1, zb))
+
         out, u = [], a
         for lo, hi in sorted(holes):
             out.append(mk(u, lo, z0, z0 + H))
@@ -562,32 +644,61 @@ class _Builder:
 
     def _door_frame(self, axis, fixed, lo, hi, z0, f, rooms) -> None:
         depth, w = WALL_T + 0.04, 0.06
+
         def mk(u0, u1, za, zb):
             t0, t1 = fixed - depth / 2, fixed + depth / 2
             return box_mesh((u0, t0, za), (u1, t1, zb)) if axis == 0 else box_mesh((t0, u0, za), (t1, u1, zb))
-        meshes = [mk(lo, lo + w, z0, z0 + DOOR_H), mk(hi - w, hi, z0, z0 + DOOR_H), mk(lo, hi, z0 + DOOR_H - w, z0 + DOOR_H)]
+
+        meshes = [
+            mk(lo, lo + w, z0, z0 + DOOR_H),
+            mk(hi - w, hi, z0, z0 + DOOR_H),
+            mk(lo, hi, z0 + DOOR_H - w, z0 + DOOR_H),
+        ]
         colour = ("white", "brown", "dark brown", "light brown")[int(self.rng.integers(4))]
-        self.add(category="door", parts=[_part(meshes, "wood", colour, self.tex_seed())], transform=np.eye(4),
-                 structural=True, room=rooms[0], floor=f, description=f"a {colour} wooden door frame",
-                 attributes={"colour": colour, "material": "wood", "rooms": ",".join(rooms)})
+        self.add(
+            category="door",
+            parts=[_part(meshes, "wood", colour, self.tex_seed())],
+            transform=np.eye(4),
+            structural=True,
+            room=rooms[0],
+            floor=f,
+            description=f"a {colour} wooden door frame",
+            attributes={"colour": colour, "material": "wood", "rooms": ",".join(rooms)},
+        )
 
     def _window(self, axis, fixed, span, z0, f, room: Room, inside: int) -> None:
         sgn = -1 if inside == 0 else 1
         t_in = fixed + sgn * WALL_T / 2  # inner wall surface
         za, zb = z0 + 0.9, z0 + 2.1
+
         def mk(u0, u1, z_0, z_1, d0, d1):
             t0, t1 = sorted((t_in + sgn * d0, t_in + sgn * d1))
             return box_mesh((u0, t0, z_0), (u1, t1, z_1)) if axis == 0 else box_mesh((t0, u0, z_0), (t1, u1, z_1))
+
         lo, hi = span
         fw = 0.05
-        frame = [mk(lo, hi, za, za + fw, 0, 0.05), mk(lo, hi, zb - fw, zb, 0, 0.05), mk(lo, lo + fw, za, zb, 0, 0.05),
-                 mk(hi - fw, hi, za, zb, 0, 0.05), mk(lo, hi, (za + zb) / 2 - 0.02, (za + zb) / 2 + 0.02, 0, 0.04),
-                 mk(lo - 0.05, hi + 0.05, za - 0.04, za, 0, 0.12)]
+        frame = [
+            mk(lo, hi, za, za + fw, 0, 0.05),
+            mk(lo, hi, zb - fw, zb, 0, 0.05),
+            mk(lo, lo + fw, za, zb, 0, 0.05),
+            mk(hi - fw, hi, za, zb, 0, 0.05),
+            mk(lo, hi, (za + zb) / 2 - 0.02, (za + zb) / 2 + 0.02, 0, 0.04),
+            mk(lo - 0.05, hi + 0.05, za - 0.04, za, 0, 0.12),
+        ]
         pane = [mk(lo + fw, hi - fw, za + fw, zb - fw, 0, 0.02)]
-        self.add(category="window", parts=[_part(frame, "plastic", "white", self.tex_seed()),
-                                           _part(pane, "glass", "light blue", self.tex_seed())],
-                 transform=np.eye(4), structural=True, room=room.name, floor=f, description="a white framed window",
-                 attributes={"colour": "white", "material": "glass"})
+        self.add(
+            category="window",
+            parts=[
+                _part(frame, "plastic", "white", self.tex_seed()),
+                _part(pane, "glass", "light blue", self.tex_seed()),
+            ],
+            transform=np.eye(4),
+            structural=True,
+            room=room.name,
+            floor=f,
+            description="a white framed window",
+            attributes={"colour": "white", "material": "glass"},
+        )
 
     def _stairs(self, room: Room, rect, top: bool, z0: float) -> None:
         n = 16
@@ -595,29 +706,51 @@ class _Builder:
         x0, y0, x1, y1 = rect
         steps = [box_mesh((x0 + i * run, y0, z0), (x0 + (i + 1) * run, y1, z0 + (i + 1) * rise)) for i in range(n)]
         colour = ("grey", "brown", "light brown")[int(self.rng.integers(3))]
-        self.add(category="stairs", parts=[_part(steps, "wood" if colour != "grey" else "stone", colour, self.tex_seed())],
-                 transform=np.eye(4), structural=True, room=room.name, floor=room.floor,
-                 description=f"a straight {colour} staircase", attributes={"colour": colour, "material": "wood"})
+        self.add(
+            category="stairs",
+            parts=[_part(steps, "wood" if colour != "grey" else "stone", colour, self.tex_seed())],
+            transform=np.eye(4),
+            structural=True,
+            room=room.name,
+            floor=room.floor,
+            description=f"a straight {colour} staircase",
+            attributes={"colour": colour, "material": "wood"},
+        )
 
     def _railing(self, room: Room, hole, z0: float) -> None:
         x0, y0, x1, y1 = hole
         inner_y = y0 if abs(y1 - room.rect[3]) < 1e-6 else y1
-        posts = [box_mesh((x - 0.02, inner_y - 0.02, z0), (x + 0.02, inner_y + 0.02, z0 + 1.0)) for x in np.linspace(x0, x1, 9)]
+        posts = [
+            box_mesh((x - 0.02, inner_y - 0.02, z0), (x + 0.02, inner_y + 0.02, z0 + 1.0))
+            for x in np.linspace(x0, x1, 9)
+        ]
         posts.append(box_mesh((x0 - 0.03, inner_y - 0.03, z0 + 0.95), (x1 + 0.03, inner_y + 0.03, z0 + 1.0)))
         ya, yb = sorted((y0, y1))
         posts += [box_mesh((x0 - 0.02, y - 0.02, z0), (x0 + 0.02, y + 0.02, z0 + 1.0)) for y in np.linspace(ya, yb, 4)]
         posts.append(box_mesh((x0 - 0.03, ya, z0 + 0.95), (x0 + 0.03, yb, z0 + 1.0)))
-        self.add(category="railing", parts=[_part(posts, "metal", "dark grey", self.tex_seed())], transform=np.eye(4),
-                 structural=True, room=room.name, floor=room.floor, description="a dark grey metal railing",
-                 attributes={"colour": "dark grey", "material": "metal"})
+        self.add(
+            category="railing",
+            parts=[_part(posts, "metal", "dark grey", self.tex_seed())],
+            transform=np.eye(4),
+            structural=True,
+            room=room.name,
+            floor=room.floor,
+            description="a dark grey metal railing",
+            attributes={"colour": "dark grey", "material": "metal"},
+        )
 
     # furniture ----------------------------------------------------------------------------------
 
     def _occupied(self, room: Room) -> _Boxes:
         """Boxes furniture must avoid: this room's stairs and railings (door frames and windows are kept
         clear by the door and window zones; objects are added as they are placed)."""
-        return _Boxes([(i.id, i.aabb) for i in self.instances
-                       if i.room == room.name and i.category not in ("wall", "floor", "ceiling", "window", "door")])
+        return _Boxes(
+            [
+                (i.id, i.aabb)
+                for i in self.instances
+                if i.room == room.name and i.category not in ("wall", "floor", "ceiling", "window", "door")
+            ]
+        )
 
     def _fits(self, box: np.ndarray, room: Room, ignore: set[int], occupied: _Boxes) -> bool:
         x0, y0, x1, y1 = room.rect
@@ -631,13 +764,17 @@ class _Builder:
         """Would the room stay walkable with ``box`` added: one connected free region that reaches every
         doorway and keeps MIN_FREE_SHARE of the empty room's free area?"""
         x0, y0, x1, y1 = room.rect
-        xs, ys = np.meshgrid(np.arange(x0 - 0.4, x1 + 0.4, GRID_RES) + GRID_RES / 2,
-                             np.arange(y0 - 0.4, y1 + 0.4, GRID_RES) + GRID_RES / 2)
+        xs, ys = np.meshgrid(
+            np.arange(x0 - 0.4, x1 + 0.4, GRID_RES) + GRID_RES / 2,
+            np.arange(y0 - 0.4, y1 + 0.4, GRID_RES) + GRID_RES / 2,
+        )
         doors = [d for d in self.doors if room.name in d.rooms]
         blocked = [rect for f, rect in self.blocked if f == room.floor]
         inside = (xs >= x0) & (xs <= x1) & (ys >= y0) & (ys <= y1)
         if room.name not in self._empty_free:
-            self._empty_free[room.name] = (free_space(xs, ys, [room], doors, np.zeros((0, 2, 3)), blocked, room.z0) & inside).sum()
+            self._empty_free[room.name] = (
+                free_space(xs, ys, [room], doors, np.zeros((0, 2, 3)), blocked, room.z0) & inside
+            ).sum()
         free = free_space(xs, ys, [room], doors, np.concatenate([occupied.boxes, box[None]]), blocked, room.z0)
         if (free & inside).sum() < MIN_FREE_SHARE * self._empty_free[room.name]:
             return False
@@ -662,7 +799,11 @@ class _Builder:
             cx, cy = d.centre[:2]
             half = DOOR_W / 2 + 0.15
             lo = np.array([cx - half, cy - 1.0, room.z0]) if d.axis == 0 else np.array([cx - 1.0, cy - half, room.z0])
-            hi = np.array([cx + half, cy + 1.0, room.z0 + DOOR_H]) if d.axis == 0 else np.array([cx + 1.0, cy + half, room.z0 + DOOR_H])
+            hi = (
+                np.array([cx + half, cy + 1.0, room.z0 + DOOR_H])
+                if d.axis == 0
+                else np.array([cx + 1.0, cy + half, room.z0 + DOOR_H])
+            )
             zones.append(np.stack([lo, hi]))
         return zones
 
@@ -677,9 +818,19 @@ class _Builder:
         return cats[int(self.rng.choice(len(cats), p=w / w.sum()))].name
 
     def _place_instance(self, asset: Asset, room: Room, T: np.ndarray, support: int | None = None) -> Instance:
-        return self.add(category=asset.category, parts=asset.parts, transform=T, structural=False, room=room.name,
-                        floor=room.floor, description=asset.description, attributes=dict(asset.attributes),
-                        placement=asset.placement, support=support, surface_heights=list(asset.surface_heights))
+        return self.add(
+            category=asset.category,
+            parts=asset.parts,
+            transform=T,
+            structural=False,
+            room=room.name,
+            floor=room.floor,
+            description=asset.description,
+            attributes=dict(asset.attributes),
+            placement=asset.placement,
+            support=support,
+            surface_heights=list(asset.surface_heights),
+        )
 
     @staticmethod
     def _corners(asset: Asset) -> np.ndarray:
@@ -694,7 +845,9 @@ class _Builder:
         pts = corners @ T[:3, :3].T + T[:3, 3]
         return np.stack([pts.min(axis=0), pts.max(axis=0)])
 
-    def _try_floor(self, asset: Asset, room: Room, occupied: _Boxes, keep_clear: list, tries: int = 30) -> Instance | None:
+    def _try_floor(
+        self, asset: Asset, room: Room, occupied: _Boxes, keep_clear: list, tries: int = 30
+    ) -> Instance | None:
         rng = self.rng
         x0, y0, x1, y1 = room.rect
         ext = asset.extent
@@ -716,7 +869,10 @@ class _Builder:
                     x, y = x0 + back, y0 + ext[0] / 2 + along * (y1 - y0 - ext[0])
                 z = room.z0 + (rng.uniform(1.2, 1.9) - ext[2] / 2 if asset.placement == "wall_mounted" else 0.0)
             elif asset.placement == "ceiling":
-                x, y = rng.uniform(x0 + ext[0] / 2, max(x1 - ext[0] / 2, x0 + ext[0] / 2)), rng.uniform(y0 + ext[1] / 2, max(y1 - ext[1] / 2, y0 + ext[1] / 2))
+                x, y = (
+                    rng.uniform(x0 + ext[0] / 2, max(x1 - ext[0] / 2, x0 + ext[0] / 2)),
+                    rng.uniform(y0 + ext[1] / 2, max(y1 - ext[1] / 2, y0 + ext[1] / 2)),
+                )
                 yaw, z = float(rng.integers(4)) * math.pi / 2, room.z0 + room.height - ext[2]
             else:
                 x, y = rng.uniform(x0, x1), rng.uniform(y0, y1)
@@ -734,7 +890,9 @@ class _Builder:
             return inst
         return None
 
-    def _try_surface(self, asset: Asset, room: Room, supports: list[Instance], occupied: _Boxes, tries: int = 20) -> Instance | None:
+    def _try_surface(
+        self, asset: Asset, room: Room, supports: list[Instance], occupied: _Boxes, tries: int = 20
+    ) -> Instance | None:
         rng = self.rng
         ext = asset.extent
         corners = self._corners(asset)
@@ -771,15 +929,18 @@ class _Builder:
         chair_corners = self._corners(chair)
         spots = []
         for sx in (-1, 1):  # along the table's long sides (local x) facing the table
-            for t in ((0.0,) if lb[1, 0] - lb[0, 0] < 1.2 else (-0.3, 0.3)):
+            for t in (0.0,) if lb[1, 0] - lb[0, 0] < 1.2 else (-0.3, 0.3):
                 u = t * (lb[1, 0] - lb[0, 0])
                 spots.append((u, sx * ((lb[1, 1] - lb[0, 1]) / 2 + ce[1] / 2 + 0.05), math.pi if sx > 0 else 0.0))
         placed = []
         for lx, ly, yaw in spots:
             T = table.transform @ _yaw_pose(lx, ly, 0.0, yaw)
             box = self._aabb_at(chair_corners, T)
-            if (self._fits(box, room, set(), occupied) and not any(_boxes_overlap(box, z) for z in keep_clear)
-                    and self._walkable(room, occupied, box)):
+            if (
+                self._fits(box, room, set(), occupied)
+                and not any(_boxes_overlap(box, z) for z in keep_clear)
+                and self._walkable(room, occupied, box)
+            ):
                 inst = self._place_instance(chair, room, T)
                 occupied.append((inst.id, box))
                 placed.append(inst)
@@ -822,8 +983,11 @@ class _Builder:
         n_floor = max(1, int(round(0.45 * target)))
         n_wall = max(0, int(round(0.15 * target)))
         misses = 0
-        while (sum(1 for p in placed if p.placement in ("floor", "wall")) < n_floor and len(placed) < target
-               and misses < 3 * target + 10):
+        while (
+            sum(1 for p in placed if p.placement in ("floor", "wall")) < n_floor
+            and len(placed) < target
+            and misses < 3 * target + 10
+        ):
             cat = self._pick(room, "wall" if rng.random() < 0.6 else "floor")
             if cat is None:
                 misses += 1
@@ -836,7 +1000,11 @@ class _Builder:
             if inst.surface_heights and "table" in inst.category and rng.random() < 0.7 and len(placed) < target:
                 placed += self._chairs_around(inst, room, occupied, keep_clear)[: target - len(placed)]
         misses = 0
-        while sum(1 for p in placed if p.placement == "wall_mounted") < n_wall and len(placed) < target and misses < 2 * n_wall + 5:
+        while (
+            sum(1 for p in placed if p.placement == "wall_mounted") < n_wall
+            and len(placed) < target
+            and misses < 2 * n_wall + 5
+        ):
             cat = self._pick(room, "wall_mounted")
             inst = self._try_floor(sample(cat), room, occupied, keep_clear) if cat else None
             if inst is None:

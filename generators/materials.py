@@ -63,7 +63,9 @@ COLOURS: dict[str, tuple[float, float, float]] = {
 """Colour name -> sRGB in [0, 1]; the names are the words used in asset descriptions."""
 
 
-def _spectral_noise(rng: np.random.Generator, size: int, beta: float, stretch: tuple[float, float] = (1.0, 1.0)) -> np.ndarray:
+def _spectral_noise(
+    rng: np.random.Generator, size: int, beta: float, stretch: tuple[float, float] = (1.0, 1.0)
+) -> np.ndarray:
     """Tileable noise with a 1/f**beta spectrum, zero mean and unit std.
 
     ``stretch`` scales the (row, column) frequencies: a large row factor damps variation along

@@ -18,8 +18,15 @@ from matplotlib.patches import Rectangle  # noqa: E402
 
 from openreloc_bench.data.scene import Scene  # noqa: E402
 
-_KIND_COLOURS = {"bedroom": "#cfe3ff", "kitchen": "#ffe8c2", "living": "#d8f5d0", "office": "#eadcff",
-                 "bathroom": "#c9f1f1", "dining": "#ffd6d6", "corridor": "#eeeeee"}
+_KIND_COLOURS = {
+    "bedroom": "#cfe3ff",
+    "kitchen": "#ffe8c2",
+    "living": "#d8f5d0",
+    "office": "#eadcff",
+    "bathroom": "#c9f1f1",
+    "dining": "#ffd6d6",
+    "corridor": "#eeeeee",
+}
 
 
 def instance_colours(instance: np.ndarray) -> np.ndarray:
@@ -32,13 +39,14 @@ def instance_colours(instance: np.ndarray) -> np.ndarray:
 def contact_sheet(scene: Scene, frames_per_split: int = 4) -> plt.Figure:
     """Rows = splits, columns = sample frames x (RGB, depth, instances)."""
     splits = scene.splits()
-    fig, axes = plt.subplots(len(splits), 3 * frames_per_split, figsize=(2.0 * 3 * frames_per_split, 1.7 * len(splits)),
-                             squeeze=False)
+    fig, axes = plt.subplots(
+        len(splits), 3 * frames_per_split, figsize=(2.0 * 3 * frames_per_split, 1.7 * len(splits)), squeeze=False
+    )
     for r, split in enumerate(splits):
         seq = scene.sequence(split)
         picks = np.unique(np.round(np.linspace(0, len(seq) - 1, min(frames_per_split, len(seq)))).astype(int))
         for c in range(frames_per_split):
-            cells = axes[r, 3 * c: 3 * c + 3]
+            cells = axes[r, 3 * c : 3 * c + 3]
             for ax in cells:
                 ax.axis("off")
             if c >= len(picks):
@@ -71,7 +79,9 @@ def floor_plan(scene: Scene) -> plt.Figure:
             if room["floor"] != f:
                 continue
             x0, y0, x1, y1 = room["rect"]
-            ax.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, color=_KIND_COLOURS.get(room["kind"], "#f4f4f4"), zorder=0))
+            ax.add_patch(
+                Rectangle((x0, y0), x1 - x0, y1 - y0, color=_KIND_COLOURS.get(room["kind"], "#f4f4f4"), zorder=0)
+            )
             ax.text((x0 + x1) / 2, y1 - 0.15, room["name"], ha="center", va="top", fontsize=7, zorder=5)
         for o in scene.objects.values():
             if o.floor != f:
@@ -83,7 +93,9 @@ def floor_plan(scene: Scene) -> plt.Figure:
                 ax.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, fill=False, ec="#8a5a2b", lw=1.2, zorder=3))
             elif not o.structural:
                 ec = "red" if o.id in moved else "#555555"
-                ax.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, fill=True, fc="#bbbbbb", ec=ec, lw=0.6, alpha=0.6, zorder=1))
+                ax.add_patch(
+                    Rectangle((x0, y0), x1 - x0, y1 - y0, fill=True, fc="#bbbbbb", ec=ec, lw=0.6, alpha=0.6, zorder=1)
+                )
         for d in moved.values():
             if scene.objects[d["id"]].floor == f:
                 (x0, y0, _), (x1, y1, _) = d["aabb_after"]
@@ -98,8 +110,19 @@ def floor_plan(scene: Scene) -> plt.Figure:
             pos, fwd = T[m, :2, 3], T[m, :2, 2]
             if split == "mapping":
                 ax.plot(pos[:, 0], pos[:, 1], "-", alpha=0.7, zorder=6, **style)
-            ax.quiver(pos[:, 0], pos[:, 1], fwd[:, 0], fwd[:, 1], color=style["color"], angles="xy", scale_units="xy",
-                      scale=2.5, width=0.004, zorder=7, label=f"{split} ({m.sum()})")
+            ax.quiver(
+                pos[:, 0],
+                pos[:, 1],
+                fwd[:, 0],
+                fwd[:, 1],
+                color=style["color"],
+                angles="xy",
+                scale_units="xy",
+                scale=2.5,
+                width=0.004,
+                zorder=7,
+                label=f"{split} ({m.sum()})",
+            )
         ax.set_aspect("equal")
         ax.autoscale_view()
         ax.set_title(f"{scene.name}, floor {f}", fontsize=10)

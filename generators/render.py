@@ -54,7 +54,9 @@ class Renderer(ABC):
     """Renders RGB uint8, depth float32 metres (0 = no surface) and instance ids int32 (0 = none)."""
 
     @abstractmethod
-    def render(self, T_wc: np.ndarray, K: np.ndarray, width: int, height: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def render(
+        self, T_wc: np.ndarray, K: np.ndarray, width: int, height: int
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Render from camera-to-world pose ``T_wc`` (OpenCV axes) with intrinsics ``K``."""
 
     @abstractmethod
@@ -62,7 +64,9 @@ class Renderer(ABC):
         """Instance ids only (cheap visibility checks)."""
 
     @abstractmethod
-    def set_lighting(self, level: float = 1.0, tint: Sequence[float] = (1.0, 1.0, 1.0), lights_off: Sequence[int] = ()) -> None:
+    def set_lighting(
+        self, level: float = 1.0, tint: Sequence[float] = (1.0, 1.0, 1.0), lights_off: Sequence[int] = ()
+    ) -> None:
         """Scale every light by ``level``, multiply its colour by ``tint``, switch off lights by index."""
 
     @abstractmethod
@@ -72,7 +76,7 @@ class Renderer(ABC):
     def close(self) -> None:  # noqa: B027  (optional for backends without resources)
         """Free GL resources."""
 
-    def __enter__(self) -> "Renderer":
+    def __enter__(self) -> Renderer:
         return self
 
     def __exit__(self, *exc) -> None:
@@ -88,14 +92,23 @@ def _outside_frustum(corners: np.ndarray, T_wc: np.ndarray, tx: float, ty: float
     """(N,) True where all 8 corners of a box (N,8,3) are beyond one frustum plane (tx, ty = tan half-FOV)."""
     p = (corners - T_wc[:3, 3]) @ T_wc[:3, :3]  # camera-frame (OpenCV) corners
     x, y, z = p[..., 0], p[..., 1], p[..., 2]
-    return ((z < ZNEAR_M).all(-1) | (x > z * tx).all(-1) | (-x > z * tx).all(-1)
-            | (y > z * ty).all(-1) | (-y > z * ty).all(-1))
+    return (
+        (z < ZNEAR_M).all(-1)
+        | (x > z * tx).all(-1)
+        | (-x > z * tx).all(-1)
+        | (y > z * ty).all(-1)
+        | (-y > z * ty).all(-1)
+    )
 
 
 def fovy_from_K(K: np.ndarray, width: int, height: int) -> float:
     """Vertical FOV (deg) of a centred square-pixel K; other intrinsics are not renderable by GL here."""
     K = np.asarray(K, dtype=np.float64)
-    if abs(K[0, 0] - K[1, 1]) > 1e-6 * K[1, 1] or abs(K[0, 2] - (width - 1) / 2) > 1e-6 or abs(K[1, 2] - (height - 1) / 2) > 1e-6:
+    if (
+        abs(K[0, 0] - K[1, 1]) > 1e-6 * K[1, 1]
+        or abs(K[0, 2] - (width - 1) / 2) > 1e-6
+        or abs(K[1, 2] - (height - 1) / 2) > 1e-6
+    ):
         raise ValueError("renderer needs square pixels and a centred principal point ((W-1)/2, (H-1)/2)")
     return float(np.degrees(2 * np.arctan(0.5 * height / K[1, 1])))
 
@@ -121,8 +134,10 @@ def triplanar_uv(mesh_vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarr
 def msh_bytes(vertices: np.ndarray, normals: np.ndarray, uv: np.ndarray, faces: np.ndarray) -> bytes:
     """MuJoCo's binary mesh format: 4 int32 counts, float32 vertices/normals/texcoords, int32 faces."""
     header = struct.pack("<4i", len(vertices), len(normals), len(uv), len(faces))
-    return header + b"".join(np.ascontiguousarray(a, dtype=dt).tobytes()
-                             for a, dt in ((vertices, "<f4"), (normals, "<f4"), (uv, "<f4"), (faces, "<i4")))
+    return header + b"".join(
+        np.ascontiguousarray(a, dtype=dt).tobytes()
+        for a, dt in ((vertices, "<f4"), (normals, "<f4"), (uv, "<f4"), (faces, "<i4"))
+    )
 
 
 def _texture_keys(parts: list[Part]) -> Callable[[Part], tuple]:
@@ -168,7 +183,9 @@ def build_mjcf(layout: Layout, max_width: int, max_height: int) -> tuple[str, di
             if key not in tex_names:
                 name = f"t{len(tex_names)}"
                 tex_names[key] = name
-                assets[f"{name}.png"] = io.encode_png(make_texture(part.material, part.rgb, part.texture_seed, TEXTURE_PX))
+                assets[f"{name}.png"] = io.encode_png(
+                    make_texture(part.material, part.rgb, part.texture_seed, TEXTURE_PX)
+                )
                 spec = 0.5 if part.material in ("metal", "glass", "ceramic") else 0.15
                 asset_xml.append(f'<texture name="{name}" type="2d" file="{name}.png"/>')
                 asset_xml.append(f'<material name="m{name}" texture="{name}" specular="{spec}" shininess="0.3"/>')
@@ -192,7 +209,7 @@ def build_mjcf(layout: Layout, max_width: int, max_height: int) -> tuple[str, di
     ]
     xml = f"""<mujoco model="scene">
   <compiler inertiafromgeom="false"/>
-  <statistic extent="{extent:.6g}" center="{(lo[0]+hi[0])/2:.6g} {(lo[1]+hi[1])/2:.6g} {(lo[2]+hi[2])/2:.6g}"/>
+  <statistic extent="{extent:.6g}" center="{(lo[0] + hi[0]) / 2:.6g} {(lo[1] + hi[1]) / 2:.6g} {(lo[2] + hi[2]) / 2:.6g}"/>
   <visual>
     <global offwidth="{max_width}" offheight="{max_height}"/>
     <map znear="{ZNEAR_M / extent:.9g}" zfar="2.0"/>
@@ -200,11 +217,11 @@ def build_mjcf(layout: Layout, max_width: int, max_height: int) -> tuple[str, di
     <headlight ambient="0.35 0.35 0.35" diffuse="0.3 0.3 0.3" specular="0 0 0"/>
   </visual>
   <asset>
-    {chr(10).join('    ' + a for a in asset_xml).strip()}
+    {chr(10).join("    " + a for a in asset_xml).strip()}
   </asset>
   <worldbody>
     <camera name="cam" pos="0 0 0"/>
-    {chr(10).join('    ' + g for g in light_xml + geom_xml).strip()}
+    {chr(10).join("    " + g for g in light_xml + geom_xml).strip()}
   </worldbody>
 </mujoco>
 """
@@ -228,14 +245,20 @@ class MujocoRenderer(Renderer):
         for g, iid in enumerate(geom_instance):
             self._geom_ids.setdefault(iid, []).append(g)  # type: ignore[attr-defined]
         self._geom_ids = {k: np.array(v) for k, v in self._geom_ids.items()}
-        self._geom_pose0 = {g: (self.model.geom_pos[g].copy(), self.model.geom_quat[g].copy()) for g in range(self.model.ngeom)}
+        self._geom_pose0 = {
+            g: (self.model.geom_pos[g].copy(), self.model.geom_quat[g].copy()) for g in range(self.model.ngeom)
+        }
         self._update_geom_corners()
         self._init_portals(layout, geom_instance)
         self._inst_T0 = {i.id: i.transform.copy() for i in layout.instances}
         self._light_pos = np.array([li.pos for li in layout.lights]).reshape(-1, 3)
         self._light_floor = np.array([li.floor for li in layout.lights], dtype=int)
         self._floor_z = np.asarray(layout.floor_z)
-        self._base = (self.model.light_diffuse.copy(), self.model.light_ambient.copy(), self.model.light_specular.copy())
+        self._base = (
+            self.model.light_diffuse.copy(),
+            self.model.light_ambient.copy(),
+            self.model.light_specular.copy(),
+        )
         self._headlight = (np.array(self.model.vis.headlight.ambient), np.array(self.model.vis.headlight.diffuse))
         self._off: set[int] = set()
         self._max_size = (max_width, max_height)
@@ -253,9 +276,12 @@ class MujocoRenderer(Renderer):
         """Create the GL context on first use (EGL, or OSMesa when EGL fails) and make it current."""
         if self._mjr is None:
             if _MUJOCO_PREIMPORTED:
-                raise RuntimeError("mujoco was imported before generators.render without MUJOCO_GL set; "
-                                   "import generators.render first or set MUJOCO_GL=egl (or osmesa)")
+                raise RuntimeError(
+                    "mujoco was imported before generators.render without MUJOCO_GL set; "
+                    "import generators.render first or set MUJOCO_GL=egl (or osmesa)"
+                )
             from mujoco.rendering.classic import gl_context
+
             try:
                 self._gl = gl_context.GLContext(*self._max_size)
                 self._gl.make_current()
@@ -264,6 +290,7 @@ class MujocoRenderer(Renderer):
                     raise
                 log.warning("EGL rendering failed (%s); falling back to OSMesa", e)
                 from mujoco.osmesa import GLContext
+
                 gl_context.GLContext = GLContext
                 os.environ["MUJOCO_GL"] = "osmesa"
                 self._gl = GLContext(*self._max_size)
@@ -306,8 +333,13 @@ class MujocoRenderer(Renderer):
             above = [r for r in layout.rooms_on(f + 1) if r.contains_xy(centre)]
             if (f + 1, rect) in layout.blocked and below and above:
                 z = layout.floor_z[f + 1]
-                portals.append((index[below[0].name], index[above[0].name],
-                                _box_corners((rect[0], rect[1], z - 0.5), (rect[2], rect[3], z + 0.1))))
+                portals.append(
+                    (
+                        index[below[0].name],
+                        index[above[0].name],
+                        _box_corners((rect[0], rect[1], z - 0.5), (rect[2], rect[3], z + 0.1)),
+                    )
+                )
         self._portals = portals
         self._rooms = layout.rooms
 
@@ -316,8 +348,7 @@ class MujocoRenderer(Renderer):
         portals that are each inside the view frustum (conservative). None = camera outside all rooms."""
         cam = T_wc[:3, 3]
         floor = int(np.clip(np.searchsorted(self._floor_z, cam[2] + 1e-6) - 1, 0, len(self._floor_z) - 1))
-        seen = {k for k, r in enumerate(self._rooms)
-                if r.floor == floor and r.contains_xy(cam[:2], margin=-0.3)}
+        seen = {k for k, r in enumerate(self._rooms) if r.floor == floor and r.contains_xy(cam[:2], margin=-0.3)}
         if not seen:
             return None
         if self._portals:
@@ -369,15 +400,21 @@ class MujocoRenderer(Renderer):
 
     def _draw(self, T_wc: np.ndarray, K: np.ndarray, width: int, height: int) -> mujoco.MjrRect:
         if width > self._max_size[0] or height > self._max_size[1]:
-            raise ValueError(f"image {width}x{height} exceeds the renderer's maximum {self._max_size[0]}x{self._max_size[1]}")
+            raise ValueError(
+                f"image {width}x{height} exceeds the renderer's maximum {self._max_size[0]}x{self._max_size[1]}"
+            )
         self._set_camera(T_wc, K, width, height)
         ctx = self._context()
-        mujoco.mjv_updateScene(self.model, self.data, self._option, None, self._camera, mujoco.mjtCatBit.mjCAT_ALL, self._scene)
+        mujoco.mjv_updateScene(
+            self.model, self.data, self._option, None, self._camera, mujoco.mjtCatBit.mjCAT_ALL, self._scene
+        )
         rect = mujoco.MjrRect(0, 0, width, height)
         mujoco.mjr_render(rect, self._scene, ctx)
         return rect
 
-    def render(self, T_wc: np.ndarray, K: np.ndarray, width: int, height: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def render(
+        self, T_wc: np.ndarray, K: np.ndarray, width: int, height: int
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         rect = self._draw(T_wc, K, width, height)
         rgb = np.empty((height, width, 3), dtype=np.uint8)
         zbuf = np.empty((height, width), dtype=np.float32)
@@ -420,7 +457,9 @@ class MujocoRenderer(Renderer):
                 lut[g.segid + 1] = self.geom_instance[g.objid + 1]
         return lut[np.clip(segid, 0, len(lut) - 1)]
 
-    def set_lighting(self, level: float = 1.0, tint: Sequence[float] = (1.0, 1.0, 1.0), lights_off: Sequence[int] = ()) -> None:
+    def set_lighting(
+        self, level: float = 1.0, tint: Sequence[float] = (1.0, 1.0, 1.0), lights_off: Sequence[int] = ()
+    ) -> None:
         tint_a = np.asarray(tint, dtype=np.float64)
         diffuse, ambient, specular = self._base
         self.model.light_diffuse[:] = diffuse * level * tint_a

@@ -106,17 +106,30 @@ def validate_scene(spec: SceneSpec) -> None:
     if not _NAME_RE.match(spec.name):
         raise ConfigError(f"scene '{n}': 'name' must be letters, digits, '-', '_' or '.'")
     positive = {
-        "width": spec.width, "height": spec.height, "fov_y": spec.fov_y, "room_side_min": spec.room_side_min,
-        "room_side_max": spec.room_side_max, "ceiling_height": spec.ceiling_height,
-        "mapping_step_m": spec.mapping_step_m, "mapping_step_deg": spec.mapping_step_deg, "n_query": spec.n_query,
-        "rooms": spec.rooms, "floors": spec.floors,
+        "width": spec.width,
+        "height": spec.height,
+        "fov_y": spec.fov_y,
+        "room_side_min": spec.room_side_min,
+        "room_side_max": spec.room_side_max,
+        "ceiling_height": spec.ceiling_height,
+        "mapping_step_m": spec.mapping_step_m,
+        "mapping_step_deg": spec.mapping_step_deg,
+        "n_query": spec.n_query,
+        "rooms": spec.rooms,
+        "floors": spec.floors,
     }
     for key, v in positive.items():
         if v <= 0:
             raise ConfigError(f"scene '{n}': '{key}' must be positive, got {v}")
-    nonneg = {"objects_per_room": spec.objects_per_room, "n_displaced": spec.n_displaced, "seed": spec.seed,
-              "max_mapping_frames": spec.max_mapping_frames, "query_min_distance": spec.query_min_distance,
-              "query_min_angle": spec.query_min_angle, "query_min_objects": spec.query_min_objects}
+    nonneg = {
+        "objects_per_room": spec.objects_per_room,
+        "n_displaced": spec.n_displaced,
+        "seed": spec.seed,
+        "max_mapping_frames": spec.max_mapping_frames,
+        "query_min_distance": spec.query_min_distance,
+        "query_min_angle": spec.query_min_angle,
+        "query_min_objects": spec.query_min_objects,
+    }
     for key, v in nonneg.items():
         if v < 0:
             raise ConfigError(f"scene '{n}': '{key}' must be >= 0, got {v}")
@@ -125,15 +138,21 @@ def validate_scene(spec: SceneSpec) -> None:
     if spec.room_side_min < MIN_ROOM_SIDE_M:
         raise ConfigError(f"scene '{n}': 'room_side_min' must be >= {MIN_ROOM_SIDE_M} m, got {spec.room_side_min}")
     if spec.room_side_max < spec.room_side_min:
-        raise ConfigError(f"scene '{n}': 'room_side_max' ({spec.room_side_max}) is below 'room_side_min' ({spec.room_side_min})")
+        raise ConfigError(
+            f"scene '{n}': 'room_side_max' ({spec.room_side_max}) is below 'room_side_min' ({spec.room_side_min})"
+        )
     if not 2.2 <= spec.ceiling_height <= 5.0:
         raise ConfigError(f"scene '{n}': 'ceiling_height' must be in [2.2, 5.0] m, got {spec.ceiling_height}")
     rooms_ok = {"single-room": (1, 1), "multi-room": (3, 8), "multi-floor": (2, 8)}[spec.kind]
     if not rooms_ok[0] <= spec.rooms <= rooms_ok[1]:
-        raise ConfigError(f"scene '{n}': 'rooms' must be in [{rooms_ok[0]}, {rooms_ok[1]}] for kind {spec.kind}, got {spec.rooms}")
+        raise ConfigError(
+            f"scene '{n}': 'rooms' must be in [{rooms_ok[0]}, {rooms_ok[1]}] for kind {spec.kind}, got {spec.rooms}"
+        )
     floors_ok = (2, 3) if spec.kind == "multi-floor" else (1, 1)
     if not floors_ok[0] <= spec.floors <= floors_ok[1]:
-        raise ConfigError(f"scene '{n}': 'floors' must be in [{floors_ok[0]}, {floors_ok[1]}] for kind {spec.kind}, got {spec.floors}")
+        raise ConfigError(
+            f"scene '{n}': 'floors' must be in [{floors_ok[0]}, {floors_ok[1]}] for kind {spec.kind}, got {spec.floors}"
+        )
     if spec.kind == "multi-floor" and spec.room_side_max < 4.5:
         raise ConfigError(f"scene '{n}': 'room_side_max' must be >= 4.5 m for multi-floor scenes (stairs need 4 m)")
     capacity = int(MAX_OBJECTS_PER_M2 * spec.room_side_min**2)
@@ -174,11 +193,15 @@ class SuiteSpec:
                 raise ConfigError(f"'scenes[{i}]': expected a mapping")
             spec = config.from_dict(SceneSpec, {**self.defaults, **raw}, where=f"scenes[{i}]")
             if self.purpose == "benchmark" and spec.seed >= TRAINING_SEED_MIN:
-                raise ConfigError(f"'scenes[{i}].seed' = {spec.seed}: a benchmark suite's seeds must be below "
-                                  f"{TRAINING_SEED_MIN} (higher ones are reserved for training and validation)")
+                raise ConfigError(
+                    f"'scenes[{i}].seed' = {spec.seed}: a benchmark suite's seeds must be below "
+                    f"{TRAINING_SEED_MIN} (higher ones are reserved for training and validation)"
+                )
             if self.purpose == "validation" and spec.seed < VALIDATION_SEED_MIN:
-                raise ConfigError(f"'scenes[{i}].seed' = {spec.seed}: a validation suite's seeds must be at least "
-                                  f"{VALIDATION_SEED_MIN} (lower ones are benchmark or training scenes)")
+                raise ConfigError(
+                    f"'scenes[{i}].seed' = {spec.seed}: a validation suite's seeds must be at least "
+                    f"{VALIDATION_SEED_MIN} (lower ones are benchmark or training scenes)"
+                )
             specs.append(spec)
         names = [s.name for s in specs]
         dupes = sorted({x for x in names if names.count(x) > 1})

@@ -73,10 +73,22 @@ def occupancy_grid(layout: Layout, floor: int) -> Occupancy:
     for k, room in enumerate(rooms):
         x0, y0, x1, y1 = room.rect
         room_index[(xs >= x0) & (xs <= x1) & (ys >= y0) & (ys <= y1)] = k
-    boxes = np.array([i.aabb for i in layout.instances if i.floor == floor
-                      and i.category not in ("wall", "floor", "ceiling", "door", "window")]).reshape(-1, 2, 3)
-    free = free_space(xs, ys, rooms, [d for d in layout.doors if d.floor == floor], boxes,
-                      [rect for f, rect in layout.blocked if f == floor], layout.floor_z[floor])
+    boxes = np.array(
+        [
+            i.aabb
+            for i in layout.instances
+            if i.floor == floor and i.category not in ("wall", "floor", "ceiling", "door", "window")
+        ]
+    ).reshape(-1, 2, 3)
+    free = free_space(
+        xs,
+        ys,
+        rooms,
+        [d for d in layout.doors if d.floor == floor],
+        boxes,
+        [rect for f, rect in layout.blocked if f == floor],
+        layout.floor_z[floor],
+    )
     return Occupancy(floor, origin, free, room_index, rooms)
 
 
@@ -147,7 +159,9 @@ def _snap_free(occ: Occupancy, region: np.ndarray, pts: np.ndarray, room_k: int)
 def _room_loop(occ: Occupancy, region: np.ndarray, k: int, room: Room, start: np.ndarray) -> np.ndarray:
     x0, y0, x1, y1 = room.rect
     inset = float(np.clip(0.25 * min(x1 - x0, y1 - y0), WALL_CLEARANCE + 0.1, 1.1))
-    corners = np.array([[x0 + inset, y0 + inset], [x1 - inset, y0 + inset], [x1 - inset, y1 - inset], [x0 + inset, y1 - inset]])
+    corners = np.array(
+        [[x0 + inset, y0 + inset], [x1 - inset, y0 + inset], [x1 - inset, y1 - inset], [x0 + inset, y1 - inset]]
+    )
     ring = np.vstack([corners, corners[:1]])
     seg = np.linalg.norm(np.diff(ring, axis=0), axis=1)
     s = np.arange(0, seg.sum(), GRID_RES)
@@ -293,8 +307,9 @@ def visible_objects(instance: np.ndarray, structural_ids: set[int]) -> int:
     return int(sum(1 for i, s in zip(ids, share) if s >= MIN_OBJECT_SHARE and int(i) not in structural_ids))
 
 
-def sample_queries(layout: Layout, spec: SceneSpec, mapping: np.ndarray, renderer: Renderer,
-                   max_tries_per_query: int = 400) -> tuple[np.ndarray, list[QueryInfo]]:
+def sample_queries(
+    layout: Layout, spec: SceneSpec, mapping: np.ndarray, renderer: Renderer, max_tries_per_query: int = 400
+) -> tuple[np.ndarray, list[QueryInfo]]:
     """Query poses with a real viewpoint change and enough visible objects (deterministic in the seed)."""
     rng = np.random.default_rng([spec.seed, 13])
     occs = [occupancy_grid(layout, f) for f in range(len(layout.floor_z))]
@@ -313,8 +328,10 @@ def sample_queries(layout: Layout, spec: SceneSpec, mapping: np.ndarray, rendere
     while len(poses) < spec.n_query:
         tries += 1
         if tries > max_tries_per_query * spec.n_query:
-            raise RuntimeError(f"could only place {len(poses)} of {spec.n_query} query poses "
-                               "(lower query_min_distance / query_min_angle / query_min_objects)")
+            raise RuntimeError(
+                f"could only place {len(poses)} of {spec.n_query} query poses "
+                "(lower query_min_distance / query_min_angle / query_min_objects)"
+            )
         f = int(rng.choice(len(occs), p=weights / weights.sum()))
         r, c = cells[f][int(rng.integers(len(cells[f])))]
         xy = occs[f].centre(np.array([r]), np.array([c]))[0] + rng.uniform(-0.5, 0.5, 2) * GRID_RES
@@ -335,6 +352,13 @@ def sample_queries(layout: Layout, spec: SceneSpec, mapping: np.ndarray, rendere
         if n_vis < spec.query_min_objects:
             continue
         poses.append(T)
-        infos.append(QueryInfo(near, round(float(d[near]), 4), round(float(ang[near]), 3),
-                               round(min_ang, 3) if np.isfinite(min_ang) else None, n_vis))
+        infos.append(
+            QueryInfo(
+                near,
+                round(float(d[near]), 4),
+                round(float(ang[near]), 3),
+                round(min_ang, 3) if np.isfinite(min_ang) else None,
+                n_vis,
+            )
+        )
     return np.array(poses).reshape(-1, 4, 4), infos

@@ -80,8 +80,11 @@ def sample_displacements(layout: Layout, spec: SceneSpec, keep_free: np.ndarray,
     rng = np.random.default_rng([spec.seed, 19])
     rooms = {r.name: r for r in layout.rooms}
     supported = {i.support for i in layout.instances if i.support is not None}
-    candidates = [i for i in layout.instances if not i.structural and i.placement in ("floor", "wall", "surface")
-                  and i.id not in supported]
+    candidates = [
+        i
+        for i in layout.instances
+        if not i.structural and i.placement in ("floor", "wall", "surface") and i.id not in supported
+    ]
     boxes = {i.id: i.aabb for i in layout.instances if i.category not in ("wall", "floor", "ceiling", "window")}
     out: list[Displacement] = []
     for idx in rng.permutation(len(candidates)):
@@ -120,10 +123,19 @@ def sample_displacements(layout: Layout, spec: SceneSpec, keep_free: np.ndarray,
             if len(keep_free) and np.any(np.all((keep_free > box[0] - 0.2) & (keep_free < box[1] + 0.2), axis=1)):
                 continue
             boxes[inst.id] = box
-            out.append(Displacement(
-                inst.id, inst.category, inst.room, kind, np.round(shift, 6).tolist(), round(yaw, 4),
-                np.round(inst.transform, 9).tolist(), np.round(T_new, 9).tolist(),
-                np.round(inst.aabb, 5).tolist(), np.round(box, 5).tolist(),
-            ))
+            out.append(
+                Displacement(
+                    inst.id,
+                    inst.category,
+                    inst.room,
+                    kind,
+                    np.round(shift, 6).tolist(),
+                    round(yaw, 4),
+                    np.round(inst.transform, 9).tolist(),
+                    np.round(T_new, 9).tolist(),
+                    np.round(inst.aabb, 5).tolist(),
+                    np.round(box, 5).tolist(),
+                )
+            )
             break
     return out

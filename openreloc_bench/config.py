@@ -12,7 +12,7 @@ import inspect
 import textwrap
 import types
 import typing
-from functools import lru_cache
+from functools import cache
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -128,7 +128,7 @@ def dump_yaml(cfg: Any) -> str:
     return yaml.safe_dump(to_dict(cfg), sort_keys=False)
 
 
-@lru_cache(maxsize=None)
+@cache
 def field_docs(cls: type) -> dict[str, str]:
     """The docstring written under each field of a dataclass (for --help and generated docs)."""
     docs: dict[str, str] = {}
@@ -157,8 +157,12 @@ def describe(cls: type) -> str:
     docs = field_docs(cls)
     lines = []
     for f in dataclasses.fields(cls):
-        default = f.default if f.default is not dataclasses.MISSING else (
-            f.default_factory() if f.default_factory is not dataclasses.MISSING else "required"  # type: ignore[misc]
+        default = (
+            f.default
+            if f.default is not dataclasses.MISSING
+            else (
+                f.default_factory() if f.default_factory is not dataclasses.MISSING else "required"  # type: ignore[misc]
+            )
         )
         lines.append(f"  {f.name} = {default!r}\n      {docs.get(f.name, '')}")
     return "\n".join(lines)

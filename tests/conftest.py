@@ -11,7 +11,9 @@ from openreloc_bench import geometry
 from openreloc_bench.data.scene import ObjectInfo, SceneWriter
 
 
-def write_tiny_scene(root: Path, n_mapping: int = 6, n_query: int = 3, hw: tuple[int, int] = (24, 32), seed: int = 0) -> Path:
+def write_tiny_scene(
+    root: Path, n_mapping: int = 6, n_query: int = 3, hw: tuple[int, int] = (24, 32), seed: int = 0
+) -> Path:
     """A scene of random-texture frames on a circle of poses, with one box-shaped 'object' id 1.
 
     Good for format, harness and method-contract tests; not geometrically consistent imagery.

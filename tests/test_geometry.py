@@ -101,9 +101,7 @@ def test_pose_errors_known_values():
 
 def test_rotation_error_matches_scipy(rng):
     A, B = random_poses(rng, 100), random_poses(rng, 100)
-    expected = np.degrees(
-        (Rotation.from_matrix(A[:, :3, :3]).inv() * Rotation.from_matrix(B[:, :3, :3])).magnitude()
-    )
+    expected = np.degrees((Rotation.from_matrix(A[:, :3, :3]).inv() * Rotation.from_matrix(B[:, :3, :3])).magnitude())
     np.testing.assert_allclose(g.rotation_error(A, B), expected, atol=1e-6)
 
 

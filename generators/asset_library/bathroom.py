@@ -15,7 +15,9 @@ def _tap(ctx: Ctx, x: float, y: float, z: float, reach: float) -> None:
     ctx.add(rod((x, y, z + 0.14), (x, y + reach, z + 0.12), 0.01), "metal", "silver")
 
 
-@category("toilet", "wall", BATH, 1.0, materials=["ceramic"], colours=SANITARY_COLOURS, styles=["close-coupled", "wall-hung"])
+@category(
+    "toilet", "wall", BATH, 1.0, materials=["ceramic"], colours=SANITARY_COLOURS, styles=["close-coupled", "wall-hung"]
+)
 def toilet(ctx: Ctx) -> None:
     w, L = ctx.u(0.36, 0.4), ctx.u(0.6, 0.7)
     seat_h = ctx.u(0.4, 0.44)
@@ -31,7 +33,10 @@ def toilet(ctx: Ctx) -> None:
         ctx.add(revolve([(0, 0), (0.1, 0), (0.12, seat_h * 0.5), (0, seat_h * 0.5)], 0, 0.05, 0, sections=16))
         bowl_z = seat_h * 0.45
         ctx.feature("a cistern")
-    bowl = revolve([(0, 0), (0.1, 0), (0.19, seat_h - bowl_z - 0.02), (0.16, seat_h - bowl_z), (0, seat_h - bowl_z - 0.05)], sections=20)
+    bowl = revolve(
+        [(0, 0), (0.1, 0), (0.19, seat_h - bowl_z - 0.02), (0.16, seat_h - bowl_z), (0, seat_h - bowl_z - 0.05)],
+        sections=20,
+    )
     bowl.apply_scale((w / 0.38, 1.25, 1.0))
     bowl.apply_translation((0, 0.06, bowl_z))
     ctx.add(bowl)
@@ -43,7 +48,15 @@ def toilet(ctx: Ctx) -> None:
     ctx.feature(f"a {seat_c} seat")
 
 
-@category("sink", "wall", ["bathroom"], 1.0, materials=["ceramic", "stone"], colours=SANITARY_COLOURS, styles=["pedestal", "vanity"])
+@category(
+    "sink",
+    "wall",
+    ["bathroom"],
+    1.0,
+    materials=["ceramic", "stone"],
+    colours=SANITARY_COLOURS,
+    styles=["pedestal", "vanity"],
+)
 def sink(ctx: Ctx) -> None:
     w, d = ctx.u(0.5, 0.65) * ctx.s, ctx.u(0.42, 0.5)
     top = ctx.u(0.82, 0.88)
@@ -52,11 +65,23 @@ def sink(ctx: Ctx) -> None:
         ctx.add(box(w, d, top - 0.12), "wood", cab)
         for sx in (-1, 1):
             ctx.add(box(w / 2 - 0.02, 0.02, top - 0.18, sx * w / 4, d / 2, 0.02), "wood", cab)
-            ctx.add(rod((sx * 0.05, d / 2 + 0.03, top - 0.3), (sx * 0.05, d / 2 + 0.03, top - 0.2), 0.007), "metal", "silver")
+            ctx.add(
+                rod((sx * 0.05, d / 2 + 0.03, top - 0.3), (sx * 0.05, d / 2 + 0.03, top - 0.2), 0.007),
+                "metal",
+                "silver",
+            )
         ctx.add(box(w + 0.02, d + 0.02, 0.12, 0, 0, top - 0.12))
         ctx.feature(f"a {cab} vanity cabinet")
     else:
-        ctx.add(revolve([(0, 0), (0.12, 0), (0.07, 0.1), (0.08, top - 0.2), (0.14, top - 0.14), (0, top - 0.14)], 0, -0.05, 0, sections=16))
+        ctx.add(
+            revolve(
+                [(0, 0), (0.12, 0), (0.07, 0.1), (0.08, top - 0.2), (0.14, top - 0.14), (0, top - 0.14)],
+                0,
+                -0.05,
+                0,
+                sections=16,
+            )
+        )
         basin = vessel([(0.12, 0), (w / 2, 0.14)], 0.015, sections=24)
         basin.apply_scale((1.0, d / w, 1.0))
         basin.apply_translation((0, 0, top - 0.14))
@@ -66,13 +91,23 @@ def sink(ctx: Ctx) -> None:
     ctx.feature("a chrome tap")
 
 
-@category("bathtub", "wall", BATH, 0.8, materials=["ceramic", "plastic"], colours=SANITARY_COLOURS, styles=["built-in", "clawfoot"])
+@category(
+    "bathtub",
+    "wall",
+    BATH,
+    0.8,
+    materials=["ceramic", "plastic"],
+    colours=SANITARY_COLOURS,
+    styles=["built-in", "clawfoot"],
+)
 def bathtub(ctx: Ctx) -> None:
     L, w, h = ctx.u(1.5, 1.8), ctx.u(0.7, 0.8), ctx.u(0.5, 0.6)
     if ctx.style == "clawfoot":
         for sx in (-1, 1):
             for sy in (-1, 1):
-                ctx.add(ellipsoid(0.04, 0.04, 0.06, sx * (L / 2 - 0.2), sy * (w / 2 - 0.15), 0.06, count=8), "metal", "gold")
+                ctx.add(
+                    ellipsoid(0.04, 0.04, 0.06, sx * (L / 2 - 0.2), sy * (w / 2 - 0.15), 0.06, count=8), "metal", "gold"
+                )
         tub = vessel([(0.25, 0), (0.36, h * 0.6), (0.42, h)], 0.03, sections=24)
         tub.apply_scale((L / 0.84, w / 0.84, 1.0))
         tub.apply_translation((0, 0, 0.08))
@@ -104,7 +139,16 @@ def towel_rack(ctx: Ctx) -> None:
     ctx.feature(f"a folded {tc} towel")
 
 
-@category("toilet_paper", "surface", BATH, 0.6, materials=["paper"], colours=("white", "cream"), styles=["single", "stacked"], noun="toilet paper")
+@category(
+    "toilet_paper",
+    "surface",
+    BATH,
+    0.6,
+    materials=["paper"],
+    colours=("white", "cream"),
+    styles=["single", "stacked"],
+    noun="toilet paper",
+)
 def toilet_paper(ctx: Ctx) -> None:
     n = 1 if ctx.style == "single" else int(ctx.rng.integers(2, 4))
     r, h = ctx.u(0.05, 0.06), ctx.u(0.095, 0.11)
@@ -114,7 +158,15 @@ def toilet_paper(ctx: Ctx) -> None:
     ctx.feature(f"{n} rolls stacked" if n > 1 else "a cardboard core")
 
 
-@category("soap_bottle", "surface", ["bathroom", "kitchen"], 0.7, materials=["plastic", "glass"], colours=TOILETRY_COLOURS, styles=["pump", "squeeze"])
+@category(
+    "soap_bottle",
+    "surface",
+    ["bathroom", "kitchen"],
+    0.7,
+    materials=["plastic", "glass"],
+    colours=TOILETRY_COLOURS,
+    styles=["pump", "squeeze"],
+)
 def soap_bottle(ctx: Ctx) -> None:
     r, h = ctx.u(0.03, 0.04) * ctx.s, ctx.u(0.12, 0.18) * ctx.s
     ctx.add(revolve([(0, 0), (r, 0), (r, h * 0.85), (r * 0.5, h), (0, h)], sections=16))
@@ -128,7 +180,14 @@ def soap_bottle(ctx: Ctx) -> None:
     ctx.add(cyl(r + 0.001, h * 0.35, 0, 0, h * 0.2, sections=16), "paper", "white")
 
 
-@category("toothbrush_cup", "surface", BATH, 0.4, materials=["ceramic", "glass", "plastic"], colours=TOILETRY_COLOURS + ("white",))
+@category(
+    "toothbrush_cup",
+    "surface",
+    BATH,
+    0.4,
+    materials=["ceramic", "glass", "plastic"],
+    colours=TOILETRY_COLOURS + ("white",),
+)
 def toothbrush_cup(ctx: Ctx) -> None:
     r, h = ctx.u(0.035, 0.045), ctx.u(0.09, 0.12)
     ctx.add(vessel([(r, 0), (r * 1.1, h)], 0.004, sections=16))

@@ -104,7 +104,9 @@ def category(
 
     def deco(fn: Callable[[Ctx], None]) -> Callable[[Ctx], None]:
         spec = CategorySpec(name, placement, tuple(rooms), float(weight))
-        RECIPES[name] = Recipe(spec, fn, noun or name.replace("_", " "), tuple(materials), tuple(colours), tuple(styles))
+        RECIPES[name] = Recipe(
+            spec, fn, noun or name.replace("_", " "), tuple(materials), tuple(colours), tuple(styles)
+        )
         return fn
 
     return deco
@@ -170,7 +172,9 @@ def box(sx: float, sy: float, sz: float, x: float = 0.0, y: float = 0.0, z: floa
 
 def cyl(r: float, h: float, x: float = 0.0, y: float = 0.0, z: float = 0.0, sections: int = 16) -> trimesh.Trimesh:
     """Vertical cylinder whose bottom disc is centred at (x, y, z)."""
-    return creation.cylinder(radius=r, height=h, sections=sections, transform=trimesh.transformations.translation_matrix((x, y, z + h / 2)))
+    return creation.cylinder(
+        radius=r, height=h, sections=sections, transform=trimesh.transformations.translation_matrix((x, y, z + h / 2))
+    )
 
 
 def rod(p0: Sequence[float], p1: Sequence[float], r: float, sections: int = 8) -> trimesh.Trimesh:
@@ -178,7 +182,9 @@ def rod(p0: Sequence[float], p1: Sequence[float], r: float, sections: int = 8) -
     return creation.cylinder(radius=r, segment=np.array([p0, p1], dtype=float), sections=sections)
 
 
-def ellipsoid(rx: float, ry: float, rz: float, x: float = 0.0, y: float = 0.0, z: float = 0.0, count: int = 12) -> trimesh.Trimesh:
+def ellipsoid(
+    rx: float, ry: float, rz: float, x: float = 0.0, y: float = 0.0, z: float = 0.0, count: int = 12
+) -> trimesh.Trimesh:
     """Ellipsoid centred at (x, y, z) (z here is the centre, not the bottom)."""
     m = creation.uv_sphere(radius=1.0, count=[count, max(6, count * 2 // 3)])
     m.apply_scale((rx, ry, rz))
@@ -186,7 +192,9 @@ def ellipsoid(rx: float, ry: float, rz: float, x: float = 0.0, y: float = 0.0, z
     return m
 
 
-def revolve(profile: Sequence[Sequence[float]], x: float = 0.0, y: float = 0.0, z: float = 0.0, sections: int = 20) -> trimesh.Trimesh:
+def revolve(
+    profile: Sequence[Sequence[float]], x: float = 0.0, y: float = 0.0, z: float = 0.0, sections: int = 20
+) -> trimesh.Trimesh:
     """Solid of revolution about the vertical axis through (x, y) from (radius, height) points.
 
     The profile should start and end on the axis (radius 0) so the solid is closed.
@@ -196,7 +204,9 @@ def revolve(profile: Sequence[Sequence[float]], x: float = 0.0, y: float = 0.0, 
     return m
 
 
-def torus(major: float, minor: float, center: Sequence[float] = (0, 0, 0), axis: str = "z", sections: int = 16) -> trimesh.Trimesh:
+def torus(
+    major: float, minor: float, center: Sequence[float] = (0, 0, 0), axis: str = "z", sections: int = 16
+) -> trimesh.Trimesh:
     """Ring of tube radius ``minor``; ``axis`` is the ring's normal (x, y or z)."""
     m = creation.torus(major_radius=major, minor_radius=minor, major_sections=sections, minor_sections=8)
     if axis != "z":
@@ -205,7 +215,9 @@ def torus(major: float, minor: float, center: Sequence[float] = (0, 0, 0), axis:
     return m
 
 
-def rotated(mesh: trimesh.Trimesh, angle: float, axis: Sequence[float], point: Sequence[float] = (0, 0, 0)) -> trimesh.Trimesh:
+def rotated(
+    mesh: trimesh.Trimesh, angle: float, axis: Sequence[float], point: Sequence[float] = (0, 0, 0)
+) -> trimesh.Trimesh:
     """Copy of ``mesh`` rotated by ``angle`` radians about ``axis`` through ``point``."""
     m = mesh.copy()
     m.apply_transform(trimesh.transformations.rotation_matrix(angle, axis, point))
@@ -218,7 +230,9 @@ def ring_positions(n: int, radius: float, phase: float = 0.0) -> np.ndarray:
     return np.c_[radius * np.cos(a), radius * np.sin(a)]
 
 
-def vessel(outer: Sequence[Sequence[float]], wall: float, x: float = 0.0, y: float = 0.0, z: float = 0.0, sections: int = 20) -> trimesh.Trimesh:
+def vessel(
+    outer: Sequence[Sequence[float]], wall: float, x: float = 0.0, y: float = 0.0, z: float = 0.0, sections: int = 20
+) -> trimesh.Trimesh:
     """Open container (mug, bowl, pot, vase) from its outer (radius, height) profile, bottom to rim.
 
     The inner surface is the outer one moved ``wall`` inwards and up, so the solid stays closed.

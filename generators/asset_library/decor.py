@@ -5,14 +5,47 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
-from generators.asset_library.core import Ctx, box, category, cyl, ellipsoid, revolve, ring_positions, rod, rotated, torus, vessel
+from generators.asset_library.core import (
+    Ctx,
+    box,
+    category,
+    cyl,
+    ellipsoid,
+    revolve,
+    ring_positions,
+    rod,
+    rotated,
+    torus,
+    vessel,
+)
 
-ART_COLOURS = ("red", "blue", "yellow", "green", "orange", "teal", "pink", "navy", "purple", "cream", "dark red", "olive")
+ART_COLOURS = (
+    "red",
+    "blue",
+    "yellow",
+    "green",
+    "orange",
+    "teal",
+    "pink",
+    "navy",
+    "purple",
+    "cream",
+    "dark red",
+    "olive",
+)
 POT_COLOURS = ("orange", "white", "grey", "black", "cream", "teal", "light brown")
 LEAF_COLOURS = ("green", "dark green", "olive")
 
 
-@category("vase", "surface", ["living", "dining", "bedroom"], 1.2, materials=["ceramic", "ceramic", "glass", "stone"], colours=ART_COLOURS + ("white", "black"), styles=["bulb", "cylinder", "amphora"])
+@category(
+    "vase",
+    "surface",
+    ["living", "dining", "bedroom"],
+    1.2,
+    materials=["ceramic", "ceramic", "glass", "stone"],
+    colours=ART_COLOURS + ("white", "black"),
+    styles=["bulb", "cylinder", "amphora"],
+)
 def vase(ctx: Ctx) -> None:
     h = ctx.u(0.2, 0.35) * ctx.s
     r = ctx.u(0.06, 0.09) * ctx.s
@@ -31,7 +64,15 @@ def vase(ctx: Ctx) -> None:
         ctx.feature(f"{fc} flowers")
 
 
-@category("picture_frame", "surface", ["living", "bedroom", "office"], 1.0, materials=["wood", "metal"], colours=("black", "white", "gold", "silver", "light brown", "dark brown"), noun="photo frame")
+@category(
+    "picture_frame",
+    "surface",
+    ["living", "bedroom", "office"],
+    1.0,
+    materials=["wood", "metal"],
+    colours=("black", "white", "gold", "silver", "light brown", "dark brown"),
+    noun="photo frame",
+)
 def picture_frame(ctx: Ctx) -> None:
     w, h = ctx.u(0.13, 0.22) * ctx.s, ctx.u(0.18, 0.28) * ctx.s
     tilt = 0.2
@@ -41,7 +82,15 @@ def picture_frame(ctx: Ctx) -> None:
     ctx.feature("a photo")
 
 
-@category("painting", "wall_mounted", ["living", "bedroom", "dining", "corridor", "office"], 2.0, materials=["wood", "metal"], colours=("gold", "black", "white", "light brown", "dark brown", "silver"), styles=["abstract", "landscape", "portrait"])
+@category(
+    "painting",
+    "wall_mounted",
+    ["living", "bedroom", "dining", "corridor", "office"],
+    2.0,
+    materials=["wood", "metal"],
+    colours=("gold", "black", "white", "light brown", "dark brown", "silver"),
+    styles=["abstract", "landscape", "portrait"],
+)
 def painting(ctx: Ctx) -> None:
     if ctx.style == "portrait":
         w, h = ctx.u(0.4, 0.6) * ctx.s, ctx.u(0.55, 0.8) * ctx.s
@@ -69,7 +118,15 @@ def painting(ctx: Ctx) -> None:
     ctx.feature(f"{cols[0]} and {cols[1]} shapes" if ctx.style == "abstract" else "a figure")
 
 
-@category("clock", "wall_mounted", ["kitchen", "living", "office", "corridor"], 1.0, materials=["plastic", "wood", "metal"], colours=("white", "black", "red", "silver", "light brown", "gold", "teal"), styles=["round", "square"])
+@category(
+    "clock",
+    "wall_mounted",
+    ["kitchen", "living", "office", "corridor"],
+    1.0,
+    materials=["plastic", "wood", "metal"],
+    colours=("white", "black", "red", "silver", "light brown", "gold", "teal"),
+    styles=["round", "square"],
+)
 def clock(ctx: Ctx) -> None:
     r = ctx.u(0.13, 0.2) * ctx.s
     c = np.array([0.0, 0.02, r])
@@ -82,14 +139,41 @@ def clock(ctx: Ctx) -> None:
         c = c + (0, 0, 0.015)
     for k in range(12):
         a = 2 * np.pi * k / 12
-        ctx.add(box(0.008, 0.004, 0.025 if k % 3 == 0 else 0.012, c[0] + 0.85 * r * np.sin(a), c[1] + 0.012, c[2] + 0.85 * r * np.cos(a) - 0.008), "plastic", "black")
+        ctx.add(
+            box(
+                0.008,
+                0.004,
+                0.025 if k % 3 == 0 else 0.012,
+                c[0] + 0.85 * r * np.sin(a),
+                c[1] + 0.012,
+                c[2] + 0.85 * r * np.cos(a) - 0.008,
+            ),
+            "plastic",
+            "black",
+        )
     hand_a, hand_b = ctx.u(0, 2 * np.pi), ctx.u(0, 2 * np.pi)
-    ctx.add(rod(c + (0, 0.014, 0), c + (0.5 * r * np.sin(hand_a), 0.014, 0.5 * r * np.cos(hand_a)), 0.005, sections=6), "metal", "black")
-    ctx.add(rod(c + (0, 0.016, 0), c + (0.75 * r * np.sin(hand_b), 0.016, 0.75 * r * np.cos(hand_b)), 0.003, sections=6), "metal", "black")
+    ctx.add(
+        rod(c + (0, 0.014, 0), c + (0.5 * r * np.sin(hand_a), 0.014, 0.5 * r * np.cos(hand_a)), 0.005, sections=6),
+        "metal",
+        "black",
+    )
+    ctx.add(
+        rod(c + (0, 0.016, 0), c + (0.75 * r * np.sin(hand_b), 0.016, 0.75 * r * np.cos(hand_b)), 0.003, sections=6),
+        "metal",
+        "black",
+    )
     ctx.feature("black hands")
 
 
-@category("mirror", "wall_mounted", ["bathroom", "bedroom", "corridor"], 1.0, materials=["wood", "metal"], colours=("gold", "black", "white", "silver", "light brown"), styles=["rectangular", "round", "tall"])
+@category(
+    "mirror",
+    "wall_mounted",
+    ["bathroom", "bedroom", "corridor"],
+    1.0,
+    materials=["wood", "metal"],
+    colours=("gold", "black", "white", "silver", "light brown"),
+    styles=["rectangular", "round", "tall"],
+)
 def mirror(ctx: Ctx) -> None:
     if ctx.style == "round":
         r = ctx.u(0.25, 0.4) * ctx.s
@@ -104,7 +188,15 @@ def mirror(ctx: Ctx) -> None:
     ctx.feature("a thin frame" if ctx.style == "rectangular" else "a full-length glass")
 
 
-@category("rug", "floor", ["living", "bedroom", "dining", "corridor"], 1.2, materials=["fabric"], colours=ART_COLOURS + ("beige", "grey", "white"), styles=["rectangular", "round", "runner"])
+@category(
+    "rug",
+    "floor",
+    ["living", "bedroom", "dining", "corridor"],
+    1.2,
+    materials=["fabric"],
+    colours=ART_COLOURS + ("beige", "grey", "white"),
+    styles=["rectangular", "round", "runner"],
+)
 def rug(ctx: Ctx) -> None:
     t = 0.012
     border = ctx.pick(("cream", "navy", "dark red", "black", "beige", "grey"))
@@ -123,7 +215,15 @@ def rug(ctx: Ctx) -> None:
     ctx.feature(f"a {border} border")
 
 
-@category("cushion", "surface", ["living", "bedroom"], 1.0, materials=["fabric", "fabric", "leather"], colours=ART_COLOURS + ("white", "grey"), styles=["square", "round", "bolster"])
+@category(
+    "cushion",
+    "surface",
+    ["living", "bedroom"],
+    1.0,
+    materials=["fabric", "fabric", "leather"],
+    colours=ART_COLOURS + ("white", "grey"),
+    styles=["square", "round", "bolster"],
+)
 def cushion(ctx: Ctx) -> None:
     s = ctx.s
     if ctx.style == "round":
@@ -139,7 +239,15 @@ def cushion(ctx: Ctx) -> None:
             ctx.feature("piped edges")
 
 
-@category("candle", "surface", ["living", "dining", "bedroom", "bathroom"], 0.6, materials=["wax"], colours=("white", "cream", "red", "yellow", "purple", "light blue"), styles=["pillar", "taper", "jar"])
+@category(
+    "candle",
+    "surface",
+    ["living", "dining", "bedroom", "bathroom"],
+    0.6,
+    materials=["wax"],
+    colours=("white", "cream", "red", "yellow", "purple", "light blue"),
+    styles=["pillar", "taper", "jar"],
+)
 def candle(ctx: Ctx) -> None:
     if ctx.style == "jar":
         r, h = ctx.u(0.035, 0.05), ctx.u(0.07, 0.1)
@@ -148,7 +256,13 @@ def candle(ctx: Ctx) -> None:
         ctx.feature("a glass jar")
         return
     if ctx.style == "taper":
-        ctx.add(revolve([(0, 0), (0.05, 0), (0.05, 0.01), (0.012, 0.02), (0.012, 0.06), (0.02, 0.06), (0.02, 0.07), (0, 0.07)]), "metal", "gold")
+        ctx.add(
+            revolve(
+                [(0, 0), (0.05, 0), (0.05, 0.01), (0.012, 0.02), (0.012, 0.06), (0.02, 0.06), (0.02, 0.07), (0, 0.07)]
+            ),
+            "metal",
+            "gold",
+        )
         r, h, z = 0.01, ctx.u(0.18, 0.25) * ctx.s, 0.06
         ctx.feature("a brass holder")
     else:
@@ -157,13 +271,21 @@ def candle(ctx: Ctx) -> None:
     ctx.add(cyl(0.0015, 0.012, 0, 0, z + h, sections=6), "fabric", "black")
 
 
-@category("sculpture", "surface", ["living", "office", "corridor"], 0.4, materials=["stone", "metal", "ceramic", "wood"], colours=("white", "black", "gold", "silver", "grey", "teal", "light brown"), styles=["stacked", "ring", "figure"])
+@category(
+    "sculpture",
+    "surface",
+    ["living", "office", "corridor"],
+    0.4,
+    materials=["stone", "metal", "ceramic", "wood"],
+    colours=("white", "black", "gold", "silver", "grey", "teal", "light brown"),
+    styles=["stacked", "ring", "figure"],
+)
 def sculpture(ctx: Ctx) -> None:
     s = ctx.s
     ctx.add(box(0.12 * s, 0.12 * s, 0.04), "stone", "black" if ctx.colour != "black" else "white")
     if ctx.style == "stacked":
         z = 0.04
-        for k in range(int(ctx.rng.integers(3, 5))):
+        for _ in range(int(ctx.rng.integers(3, 5))):
             r = ctx.u(0.025, 0.045) * s
             ctx.add(ellipsoid(r * 1.2, r, r * 0.8, ctx.u(-0.01, 0.01), 0, z + r * 0.8, count=10))
             z += r * 1.6
@@ -174,7 +296,11 @@ def sculpture(ctx: Ctx) -> None:
         ctx.feature("a large ring")
     else:
         h = ctx.u(0.25, 0.35) * s
-        ctx.add(revolve([(0, 0), (0.03, 0), (0.045, h * 0.4), (0.025, h * 0.7), (0.035, h * 0.85), (0, h)], z=0.04, sections=14))
+        ctx.add(
+            revolve(
+                [(0, 0), (0.03, 0), (0.045, h * 0.4), (0.025, h * 0.7), (0.035, h * 0.85), (0, h)], z=0.04, sections=14
+            )
+        )
         ctx.add(ellipsoid(0.03, 0.03, 0.04, 0, 0, 0.04 + h + 0.03, count=10))
         ctx.feature("a slender figure")
 
@@ -184,13 +310,17 @@ def _pot(ctx: Ctx, r: float, h: float, colour: str) -> None:
     ctx.add(cyl(r - 0.01, 0.01, 0, 0, h - 0.03, sections=16), "stone", "dark brown")
 
 
-def _leaves(ctx: Ctx, n: int, base: np.ndarray, length: float, colour: str, rise: tuple[float, float] = (0.3, 1.2)) -> None:
+def _leaves(
+    ctx: Ctx, n: int, base: np.ndarray, length: float, colour: str, rise: tuple[float, float] = (0.3, 1.2)
+) -> None:
     """Elongated leaves radiating from ``base`` at random azimuths and elevations."""
     for _ in range(n):
         az, el = ctx.u(0, 2 * np.pi), ctx.u(*rise)
         leaf = ellipsoid(length / 2, length * 0.16, 0.008, count=8)
         leaf.apply_transform(_euler(az, el))
-        leaf.apply_translation(base + length / 2 * np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)]))
+        leaf.apply_translation(
+            base + length / 2 * np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])
+        )
         ctx.add(leaf, "foliage", colour)
 
 
@@ -199,13 +329,28 @@ def _euler(az: float, el: float) -> np.ndarray:
     return trimesh.transformations.euler_matrix(0, -el, az, "sxyz")
 
 
-@category("potted_plant", "surface", ["living", "office", "kitchen", "bedroom", "bathroom"], 1.2, materials=["foliage"], colours=LEAF_COLOURS, styles=["leafy", "fern", "flowering"])
+@category(
+    "potted_plant",
+    "surface",
+    ["living", "office", "kitchen", "bedroom", "bathroom"],
+    1.2,
+    materials=["foliage"],
+    colours=LEAF_COLOURS,
+    styles=["leafy", "fern", "flowering"],
+)
 def potted_plant(ctx: Ctx) -> None:
     potc = ctx.pick(POT_COLOURS)
     r, h = ctx.u(0.07, 0.1) * ctx.s, ctx.u(0.1, 0.15) * ctx.s
     _pot(ctx, r, h, potc)
     n = 14 if ctx.style == "fern" else 9
-    _leaves(ctx, n, np.array([0, 0, h - 0.02]), ctx.u(0.15, 0.22) * ctx.s, ctx.colour, (0.1, 0.7) if ctx.style == "fern" else (0.5, 1.3))
+    _leaves(
+        ctx,
+        n,
+        np.array([0, 0, h - 0.02]),
+        ctx.u(0.15, 0.22) * ctx.s,
+        ctx.colour,
+        (0.1, 0.7) if ctx.style == "fern" else (0.5, 1.3),
+    )
     if ctx.style == "flowering":
         fc = ctx.pick(("red", "pink", "white", "yellow", "purple"))
         for x, y in ring_positions(4, 0.05, ctx.u(0, 1)):
@@ -220,7 +365,11 @@ def cactus(ctx: Ctx) -> None:
     r, h = ctx.u(0.05, 0.07), ctx.u(0.07, 0.1)
     _pot(ctx, r, h, potc)
     th = ctx.u(0.12, 0.25) * ctx.s
-    ctx.add(revolve([(0, 0), (r * 0.6, 0), (r * 0.6, th), (r * 0.3, th + r * 0.4), (0, th + r * 0.5)], z=h - 0.03, sections=12))
+    ctx.add(
+        revolve(
+            [(0, 0), (r * 0.6, 0), (r * 0.6, th), (r * 0.3, th + r * 0.4), (0, th + r * 0.5)], z=h - 0.03, sections=12
+        )
+    )
     n = int(ctx.rng.integers(0, 3))
     for k in range(n):
         sx = 1 if k == 0 else -1
@@ -232,7 +381,15 @@ def cactus(ctx: Ctx) -> None:
         ctx.feature("two arms" if n == 2 else "one arm")
 
 
-@category("tall_plant", "floor", ["living", "office", "corridor", "dining"], 1.0, materials=["foliage"], colours=LEAF_COLOURS, styles=["tree", "palm"])
+@category(
+    "tall_plant",
+    "floor",
+    ["living", "office", "corridor", "dining"],
+    1.0,
+    materials=["foliage"],
+    colours=LEAF_COLOURS,
+    styles=["tree", "palm"],
+)
 def tall_plant(ctx: Ctx) -> None:
     potc = ctx.pick(POT_COLOURS)
     r, h = ctx.u(0.16, 0.22), ctx.u(0.3, 0.4)

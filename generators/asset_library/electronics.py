@@ -4,7 +4,21 @@ from __future__ import annotations
 
 import numpy as np
 
-from generators.asset_library.core import ROOM_KINDS, Ctx, box, category, cyl, ellipsoid, revolve, moved, ring_positions, rod, rotated, torus, vessel
+from generators.asset_library.core import (
+    ROOM_KINDS,
+    Ctx,
+    box,
+    category,
+    cyl,
+    ellipsoid,
+    moved,
+    revolve,
+    ring_positions,
+    rod,
+    rotated,
+    torus,
+    vessel,
+)
 
 DEVICE_COLOURS = ("black", "black", "dark grey", "silver", "white")
 SHADE_COLOURS = ("white", "cream", "beige", "grey", "yellow", "light blue", "green", "black", "orange", "pink")
@@ -16,7 +30,16 @@ def _screen(ctx: Ctx, w: float, h: float, thick: float, z: float, y: float = 0.0
     ctx.add(box(w - 2 * bezel, 0.004, h - 2 * bezel, 0, y + thick / 2, z + bezel), "glass", "black")
 
 
-@category("tv", "surface", ["living", "bedroom"], 1.5, materials=["plastic", "metal"], colours=DEVICE_COLOURS, styles=["pedestal", "feet"], noun="TV")
+@category(
+    "tv",
+    "surface",
+    ["living", "bedroom"],
+    1.5,
+    materials=["plastic", "metal"],
+    colours=DEVICE_COLOURS,
+    styles=["pedestal", "feet"],
+    noun="TV",
+)
 def tv(ctx: Ctx) -> None:
     w = ctx.u(0.95, 1.25) * ctx.s
     h = w * 9 / 16 + 0.03
@@ -34,7 +57,15 @@ def tv(ctx: Ctx) -> None:
     ctx.feature("a large black screen")
 
 
-@category("monitor", "surface", ["office", "bedroom"], 1.5, materials=["plastic", "metal"], colours=DEVICE_COLOURS, styles=["column", "arm", "ultrawide"])
+@category(
+    "monitor",
+    "surface",
+    ["office", "bedroom"],
+    1.5,
+    materials=["plastic", "metal"],
+    colours=DEVICE_COLOURS,
+    styles=["column", "arm", "ultrawide"],
+)
 def monitor(ctx: Ctx) -> None:
     w = ctx.u(0.8, 0.9) if ctx.style == "ultrawide" else ctx.u(0.48, 0.62) * ctx.s
     h = ctx.u(0.34, 0.4) if ctx.style == "ultrawide" else w * 0.6
@@ -52,7 +83,14 @@ def monitor(ctx: Ctx) -> None:
     ctx.add(box(w * 0.25, 0.04, h * 0.3, 0, -0.03, z + h * 0.35))
 
 
-@category("laptop", "surface", ["office", "bedroom", "living"], 1.2, materials=["metal", "plastic"], colours=("silver", "silver", "dark grey", "black", "white", "gold"))
+@category(
+    "laptop",
+    "surface",
+    ["office", "bedroom", "living"],
+    1.2,
+    materials=["metal", "plastic"],
+    colours=("silver", "silver", "dark grey", "black", "white", "gold"),
+)
 def laptop(ctx: Ctx) -> None:
     w, d = ctx.u(0.3, 0.36) * ctx.s, ctx.u(0.21, 0.25) * ctx.s
     ctx.add(box(w, d, 0.016))
@@ -67,15 +105,30 @@ def laptop(ctx: Ctx) -> None:
     ctx.feature("a black keyboard")
 
 
-@category("radio", "surface", ["kitchen", "living", "bedroom"], 0.5, materials=["plastic", "wood", "metal"], colours=("red", "cream", "black", "silver", "brown", "light blue", "green", "orange"))
+@category(
+    "radio",
+    "surface",
+    ["kitchen", "living", "bedroom"],
+    0.5,
+    materials=["plastic", "wood", "metal"],
+    colours=("red", "cream", "black", "silver", "brown", "light blue", "green", "orange"),
+)
 def radio(ctx: Ctx) -> None:
     w, d, h = ctx.u(0.22, 0.3) * ctx.s, ctx.u(0.08, 0.11), ctx.u(0.13, 0.17) * ctx.s
     ctx.add(box(w, d, h))
-    ctx.add(rod((-w * 0.18, d / 2 - 0.002, h * 0.5), (-w * 0.18, d / 2 + 0.004, h * 0.5), h * 0.36, sections=20), "fabric", "dark grey")
+    ctx.add(
+        rod((-w * 0.18, d / 2 - 0.002, h * 0.5), (-w * 0.18, d / 2 + 0.004, h * 0.5), h * 0.36, sections=20),
+        "fabric",
+        "dark grey",
+    )
     for x in (w * 0.2, w * 0.36):
         ctx.add(rod((x, d / 2, h * 0.35), (x, d / 2 + 0.02, h * 0.35), 0.015, sections=12), "metal", "silver")
     ctx.add(box(w * 0.32, 0.004, h * 0.2, w * 0.28, d / 2, h * 0.62), "glass", "cream")
-    ctx.add(rod((w / 2 - 0.03, -d / 4, h), (w / 2 - 0.03 - 0.12, -d / 4, h + 0.28 * ctx.s), 0.004, sections=6), "metal", "silver")
+    ctx.add(
+        rod((w / 2 - 0.03, -d / 4, h), (w / 2 - 0.03 - 0.12, -d / 4, h + 0.28 * ctx.s), 0.004, sections=6),
+        "metal",
+        "silver",
+    )
     if ctx.chance(0.6):
         ctx.add(rod((-w * 0.35, 0, h), (-w * 0.35, 0, h + 0.04), 0.008), "plastic", "black")
         ctx.add(rod((w * 0.2, 0, h), (w * 0.2, 0, h + 0.04), 0.008), "plastic", "black")
@@ -85,7 +138,14 @@ def radio(ctx: Ctx) -> None:
     ctx.feature("a round speaker grille")
 
 
-@category("speaker", "surface", ["living", "office"], 0.6, materials=["wood", "plastic"], colours=("black", "dark brown", "white", "light brown", "dark grey"))
+@category(
+    "speaker",
+    "surface",
+    ["living", "office"],
+    0.6,
+    materials=["wood", "plastic"],
+    colours=("black", "dark brown", "white", "light brown", "dark grey"),
+)
 def speaker(ctx: Ctx) -> None:
     w, d, h = ctx.u(0.16, 0.22) * ctx.s, ctx.u(0.2, 0.26), ctx.u(0.28, 0.36) * ctx.s
     ctx.add(box(w, d, h))
@@ -99,7 +159,15 @@ def _shade(ctx: Ctx, r_bot: float, r_top: float, h: float, z: float, colour: str
     ctx.add(vessel([(r_bot, 0), (r_top, h)], 0.004, z=z, sections=20), "fabric", colour)
 
 
-@category("table_lamp", "surface", ["bedroom", "living"], 1.5, materials=["ceramic", "metal", "glass", "wood"], colours=("white", "cream", "blue", "green", "black", "gold", "grey", "teal", "orange"), styles=["gourd", "column", "candlestick"])
+@category(
+    "table_lamp",
+    "surface",
+    ["bedroom", "living"],
+    1.5,
+    materials=["ceramic", "metal", "glass", "wood"],
+    colours=("white", "cream", "blue", "green", "black", "gold", "grey", "teal", "orange"),
+    styles=["gourd", "column", "candlestick"],
+)
 def table_lamp(ctx: Ctx) -> None:
     s = ctx.s
     if ctx.style == "gourd":
@@ -119,7 +187,15 @@ def table_lamp(ctx: Ctx) -> None:
     ctx.feature(f"a {sc} lampshade")
 
 
-@category("desk_lamp", "surface", ["office", "bedroom"], 1.0, materials=["metal", "plastic"], colours=("black", "white", "silver", "red", "yellow", "green", "blue"), styles=["articulated", "banker"])
+@category(
+    "desk_lamp",
+    "surface",
+    ["office", "bedroom"],
+    1.0,
+    materials=["metal", "plastic"],
+    colours=("black", "white", "silver", "red", "yellow", "green", "blue"),
+    styles=["articulated", "banker"],
+)
 def desk_lamp(ctx: Ctx) -> None:
     if ctx.style == "banker":
         stem, r = ctx.u(0.26, 0.34) * ctx.s, ctx.u(0.1, 0.13) * ctx.s
@@ -143,9 +219,17 @@ def desk_lamp(ctx: Ctx) -> None:
     ctx.feature("an adjustable arm")
 
 
-@category("floor_lamp", "floor", ["living", "bedroom", "office"], 1.0, materials=["metal", "wood"], colours=("black", "silver", "gold", "white", "dark brown"), styles=["straight", "arc", "tripod"])
+@category(
+    "floor_lamp",
+    "floor",
+    ["living", "bedroom", "office"],
+    1.0,
+    materials=["metal", "wood"],
+    colours=("black", "silver", "gold", "white", "dark brown"),
+    styles=["straight", "arc", "tripod"],
+)
 def floor_lamp(ctx: Ctx) -> None:
-    h = ctx.u(1.5, 1.75) * ctx.s ** 0.5
+    h = ctx.u(1.5, 1.75) * ctx.s**0.5
     sc = ctx.pick(SHADE_COLOURS)
     if ctx.style == "tripod":
         for x, y in ring_positions(3, 0.28, ctx.u(0, 2)):
@@ -172,7 +256,15 @@ def _flip_cone(r: float, h: float):
     return revolve([(0, 0), (r, 0), (r - 0.004, 0.004), (0.02, h - 0.004), (0, h)], sections=20)
 
 
-@category("ceiling_light", "ceiling", ROOM_KINDS, 2.5, materials=["glass", "metal", "fabric"], colours=("white", "white", "cream", "black", "gold", "silver"), styles=["pendant", "flush", "chandelier"])
+@category(
+    "ceiling_light",
+    "ceiling",
+    ROOM_KINDS,
+    2.5,
+    materials=["glass", "metal", "fabric"],
+    colours=("white", "white", "cream", "black", "gold", "silver"),
+    styles=["pendant", "flush", "chandelier"],
+)
 def ceiling_light(ctx: Ctx) -> None:
     s = ctx.s
     if ctx.style == "flush":
@@ -198,7 +290,9 @@ def ceiling_light(ctx: Ctx) -> None:
     ctx.feature("six candle bulbs")
 
 
-@category("keyboard", "surface", ["office"], 0.7, materials=["plastic"], colours=("black", "white", "dark grey", "silver"))
+@category(
+    "keyboard", "surface", ["office"], 0.7, materials=["plastic"], colours=("black", "white", "dark grey", "silver")
+)
 def keyboard(ctx: Ctx) -> None:
     w, d = ctx.u(0.36, 0.45) * ctx.s, ctx.u(0.12, 0.15)
     ctx.add(box(w, d, 0.02))
@@ -208,20 +302,33 @@ def keyboard(ctx: Ctx) -> None:
     ctx.feature("rows of keys")
 
 
-@category("printer", "surface", ["office"], 0.6, materials=["plastic"], colours=("white", "black", "dark grey", "light grey"))
+@category(
+    "printer", "surface", ["office"], 0.6, materials=["plastic"], colours=("white", "black", "dark grey", "light grey")
+)
 def printer(ctx: Ctx) -> None:
     w, d, h = ctx.u(0.38, 0.46) * ctx.s, ctx.u(0.3, 0.38), ctx.u(0.18, 0.25)
     ctx.add(box(w, d, h))
-    ctx.add(rotated(box(w * 0.6, 0.006, 0.2, 0, -d / 2 + 0.02, h - 0.05), 0.4, (1, 0, 0), (0, -d / 2 + 0.02, h - 0.05)), "paper", "white")
+    ctx.add(
+        rotated(box(w * 0.6, 0.006, 0.2, 0, -d / 2 + 0.02, h - 0.05), 0.4, (1, 0, 0), (0, -d / 2 + 0.02, h - 0.05)),
+        "paper",
+        "white",
+    )
     ctx.add(box(w * 0.6, 0.12, 0.01, 0, d / 2 + 0.05, h * 0.35), "plastic", "dark grey")
     ctx.add(box(w * 0.2, 0.008, 0.04, w * 0.3, d / 2, h - 0.06), "glass", "black")
     ctx.feature("a paper tray")
     ctx.surface_heights.append(h)
 
 
-@category("fan", "floor", ["bedroom", "living", "office"], 0.4, materials=["plastic", "metal"], colours=("white", "black", "silver", "light blue"))
+@category(
+    "fan",
+    "floor",
+    ["bedroom", "living", "office"],
+    0.4,
+    materials=["plastic", "metal"],
+    colours=("white", "black", "silver", "light blue"),
+)
 def fan(ctx: Ctx) -> None:
-    h = ctx.u(0.9, 1.25) * ctx.s ** 0.5
+    h = ctx.u(0.9, 1.25) * ctx.s**0.5
     ctx.add(cyl(0.17, 0.04, sections=20))
     ctx.add(cyl(0.018, h - 0.2, 0, 0, 0.04))
     c = np.array([0, 0.0, h - 0.16])

@@ -8,11 +8,38 @@ import trimesh
 from generators.asset_library.core import Ctx, box, category, cyl, ellipsoid, ring_positions, rod, rotated, torus
 
 WOOD_COLOURS = ("light brown", "brown", "dark brown", "tan", "white", "black", "grey")
-FABRIC_COLOURS = ("grey", "dark grey", "blue", "navy", "beige", "green", "red", "brown", "cream", "teal", "pink", "yellow", "black", "light grey", "purple", "olive", "orange")
+FABRIC_COLOURS = (
+    "grey",
+    "dark grey",
+    "blue",
+    "navy",
+    "beige",
+    "green",
+    "red",
+    "brown",
+    "cream",
+    "teal",
+    "pink",
+    "yellow",
+    "black",
+    "light grey",
+    "purple",
+    "olive",
+    "orange",
+)
 LEG_COLOURS = ("dark brown", "black", "silver", "light brown")
 
 
-def _legs(ctx: Ctx, xy: np.ndarray, h: float, r: float, material: str | None = None, colour: str | None = None, z: float = 0.0, square: bool = False) -> None:
+def _legs(
+    ctx: Ctx,
+    xy: np.ndarray,
+    h: float,
+    r: float,
+    material: str | None = None,
+    colour: str | None = None,
+    z: float = 0.0,
+    square: bool = False,
+) -> None:
     for x, y in xy:
         ctx.add(box(2 * r, 2 * r, h, x, y, z) if square else cyl(r, h, x, y, z, sections=10), material, colour)
 
@@ -31,7 +58,15 @@ def _bar_handle(ctx: Ctx, x: float, y: float, z0: float, z1: float, colour: str 
     ctx.add(rod((x, y, z1), (x, y + 0.03, z1), 0.006), "metal", colour)
 
 
-@category("bed", "wall", ["bedroom"], 3.0, materials=["wood", "wood", "fabric", "metal"], colours=WOOD_COLOURS, styles=["platform", "classic", "upholstered"])
+@category(
+    "bed",
+    "wall",
+    ["bedroom"],
+    3.0,
+    materials=["wood", "wood", "fabric", "metal"],
+    colours=WOOD_COLOURS,
+    styles=["platform", "classic", "upholstered"],
+)
 def bed(ctx: Ctx) -> None:
     w = {"small": 0.95, "medium": 1.45, "large": 1.85}[ctx.size] * ctx.u(0.97, 1.04)
     L, frame_h = ctx.u(2.0, 2.15), ctx.u(0.22, 0.35)
@@ -58,7 +93,15 @@ def bed(ctx: Ctx) -> None:
     ctx.feature("two pillows" if n_pillows == 2 else "a pillow")
 
 
-@category("sofa", "wall", ["living"], 3.0, materials=["fabric", "fabric", "leather"], colours=FABRIC_COLOURS, styles=["two-seater", "three-seater", "modern"])
+@category(
+    "sofa",
+    "wall",
+    ["living"],
+    3.0,
+    materials=["fabric", "fabric", "leather"],
+    colours=FABRIC_COLOURS,
+    styles=["two-seater", "three-seater", "modern"],
+)
 def sofa(ctx: Ctx) -> None:
     seats = 2 if ctx.style == "two-seater" else 3
     arm_w = ctx.u(0.12, 0.25)
@@ -84,7 +127,15 @@ def sofa(ctx: Ctx) -> None:
         ctx.feature(f"a {c} cushion")
 
 
-@category("armchair", "floor", ["living", "bedroom", "office"], 2.5, materials=["fabric", "fabric", "leather"], colours=FABRIC_COLOURS, styles=["club", "wingback", "modern"])
+@category(
+    "armchair",
+    "floor",
+    ["living", "bedroom", "office"],
+    2.5,
+    materials=["fabric", "fabric", "leather"],
+    colours=FABRIC_COLOURS,
+    styles=["club", "wingback", "modern"],
+)
 def armchair(ctx: Ctx) -> None:
     w, d = ctx.u(0.72, 0.9) * ctx.s, ctx.u(0.75, 0.88) * ctx.s
     leg_h = 0.15 if ctx.style == "modern" else 0.05
@@ -110,7 +161,15 @@ def armchair(ctx: Ctx) -> None:
         ctx.feature("high wings")
 
 
-def _table(ctx: Ctx, w: float, d: float, h: float, round_top: bool, top_material: str | None = None, top_colour: str | None = None) -> None:
+def _table(
+    ctx: Ctx,
+    w: float,
+    d: float,
+    h: float,
+    round_top: bool,
+    top_material: str | None = None,
+    top_colour: str | None = None,
+) -> None:
     t = ctx.u(0.025, 0.05)
     if round_top:
         ctx.add(cyl(w / 2, t, 0, 0, h - t, sections=24), top_material, top_colour)
@@ -119,7 +178,15 @@ def _table(ctx: Ctx, w: float, d: float, h: float, round_top: bool, top_material
     ctx.surface_heights.append(h)
 
 
-@category("dining_table", "floor", ["dining", "kitchen"], 2.5, materials=["wood", "wood", "stone", "glass"], colours=WOOD_COLOURS, styles=["rectangular", "round", "trestle"])
+@category(
+    "dining_table",
+    "floor",
+    ["dining", "kitchen"],
+    2.5,
+    materials=["wood", "wood", "stone", "glass"],
+    colours=WOOD_COLOURS,
+    styles=["rectangular", "round", "trestle"],
+)
 def dining_table(ctx: Ctx) -> None:
     h = ctx.u(0.72, 0.77)
     if ctx.style == "round":
@@ -144,7 +211,15 @@ def dining_table(ctx: Ctx) -> None:
         ctx.feature("four square legs")
 
 
-@category("coffee_table", "floor", ["living"], 2.0, materials=["wood", "wood", "glass", "stone"], colours=WOOD_COLOURS, styles=["rectangular", "round", "glass-top"])
+@category(
+    "coffee_table",
+    "floor",
+    ["living"],
+    2.0,
+    materials=["wood", "wood", "glass", "stone"],
+    colours=WOOD_COLOURS,
+    styles=["rectangular", "round", "glass-top"],
+)
 def coffee_table(ctx: Ctx) -> None:
     h = ctx.u(0.38, 0.46)
     if ctx.style == "round":
@@ -160,7 +235,11 @@ def coffee_table(ctx: Ctx) -> None:
         for sx in (-1, 1):
             ctx.add(rod((sx * w * 0.45, -d * 0.45, 0.01), (sx * w * 0.45, d * 0.45, 0.01), 0.012), "metal", "silver")
             for sy in (-1, 1):
-                ctx.add(rod((sx * w * 0.45, sy * d * 0.45, 0), (sx * w * 0.45, sy * d * 0.45, h - 0.02), 0.012), "metal", "silver")
+                ctx.add(
+                    rod((sx * w * 0.45, sy * d * 0.45, 0), (sx * w * 0.45, sy * d * 0.45, h - 0.02), 0.012),
+                    "metal",
+                    "silver",
+                )
         ctx.feature("a glass top and a chrome frame")
         return
     _table(ctx, w, d, h, False)
@@ -170,7 +249,15 @@ def coffee_table(ctx: Ctx) -> None:
     ctx.feature("a lower shelf")
 
 
-@category("side_table", "floor", ["living", "bedroom"], 1.5, materials=["wood", "metal", "stone"], colours=WOOD_COLOURS, styles=["round", "square"])
+@category(
+    "side_table",
+    "floor",
+    ["living", "bedroom"],
+    1.5,
+    materials=["wood", "metal", "stone"],
+    colours=WOOD_COLOURS,
+    styles=["round", "square"],
+)
 def side_table(ctx: Ctx) -> None:
     h, w = ctx.u(0.5, 0.62), ctx.u(0.4, 0.5) * ctx.s
     _table(ctx, w, w, h, ctx.style == "round")
@@ -185,7 +272,15 @@ def side_table(ctx: Ctx) -> None:
         ctx.feature("a small drawer")
 
 
-@category("desk", "wall", ["office", "bedroom"], 2.0, materials=["wood", "wood", "metal"], colours=WOOD_COLOURS, styles=["pedestal", "simple", "l-frame"])
+@category(
+    "desk",
+    "wall",
+    ["office", "bedroom"],
+    2.0,
+    materials=["wood", "wood", "metal"],
+    colours=WOOD_COLOURS,
+    styles=["pedestal", "simple", "l-frame"],
+)
 def desk(ctx: Ctx) -> None:
     w, d, h = ctx.u(1.1, 1.5) * ctx.s, ctx.u(0.6, 0.75), ctx.u(0.72, 0.76)
     _table(ctx, w, d, h, False)
@@ -194,7 +289,11 @@ def desk(ctx: Ctx) -> None:
         ctx.add(box(pw, d - 0.04, h - 0.03, w / 2 - pw / 2 - 0.01, 0, 0))
         for k in range(3):
             z = 0.08 + k * (h - 0.15) / 3
-            ctx.add(box(pw - 0.04, 0.02, (h - 0.15) / 3 - 0.02, w / 2 - pw / 2 - 0.01, d / 2 - 0.02, z), "wood", "grey" if ctx.colour != "grey" else "white")
+            ctx.add(
+                box(pw - 0.04, 0.02, (h - 0.15) / 3 - 0.02, w / 2 - pw / 2 - 0.01, d / 2 - 0.02, z),
+                "wood",
+                "grey" if ctx.colour != "grey" else "white",
+            )
             _knob(ctx, w / 2 - pw / 2 - 0.01, d / 2, z + (h - 0.15) / 6)
         ctx.add(box(0.04, d - 0.06, h - 0.03, -w / 2 + 0.03, 0, 0))
         ctx.feature("a set of drawers")
@@ -202,14 +301,26 @@ def desk(ctx: Ctx) -> None:
         for sx in (-1, 1):
             ctx.add(box(0.05, d - 0.1, 0.04, sx * (w / 2 - 0.06), 0, 0), "metal", "black")
             ctx.add(box(0.05, 0.05, h - 0.03, sx * (w / 2 - 0.06), -d / 2 + 0.1, 0), "metal", "black")
-            ctx.add(rod((sx * (w / 2 - 0.06), -d / 2 + 0.1, 0.02), (sx * (w / 2 - 0.06), d / 2 - 0.06, h - 0.05), 0.02), "metal", "black")
+            ctx.add(
+                rod((sx * (w / 2 - 0.06), -d / 2 + 0.1, 0.02), (sx * (w / 2 - 0.06), d / 2 - 0.06, h - 0.05), 0.02),
+                "metal",
+                "black",
+            )
         ctx.feature("a black steel frame")
     else:
         _legs(ctx, _corners(w, d, 0.04), h - 0.03, 0.022, square=True)
         ctx.add(box(w - 0.1, 0.02, 0.1, 0, d / 2 - 0.06, h - 0.13))
 
 
-@category("office_chair", "floor", ["office"], 2.0, materials=["fabric", "leather", "plastic"], colours=("black", "dark grey", "grey", "blue", "red", "navy", "white"), styles=["task", "executive", "mesh"])
+@category(
+    "office_chair",
+    "floor",
+    ["office"],
+    2.0,
+    materials=["fabric", "leather", "plastic"],
+    colours=("black", "dark grey", "grey", "blue", "red", "navy", "white"),
+    styles=["task", "executive", "mesh"],
+)
 def office_chair(ctx: Ctx) -> None:
     leg_r = ctx.u(0.28, 0.33)
     for x, y in ring_positions(5, leg_r, ctx.u(0, np.pi)):
@@ -222,7 +333,11 @@ def office_chair(ctx: Ctx) -> None:
     back_h = ctx.u(0.45, 0.55) + (0.2 if ctx.style == "executive" else 0)
     ctx.add(rod((0, -sw / 2 + 0.05, seat_z - 0.04), (0, -sw / 2 - 0.04, seat_z + 0.15), 0.02), "metal", "black")
     back_mat = "fabric" if ctx.style == "mesh" else None
-    ctx.add(rotated_back(sw - 0.04, back_h, -sw / 2 - 0.04, seat_z + 0.1), back_mat, "black" if ctx.style == "mesh" else None)
+    ctx.add(
+        rotated_back(sw - 0.04, back_h, -sw / 2 - 0.04, seat_z + 0.1),
+        back_mat,
+        "black" if ctx.style == "mesh" else None,
+    )
     if ctx.style == "executive":
         ctx.add(box(sw * 0.6, 0.06, 0.16, 0, -sw / 2 - 0.07, seat_z + back_h - 0.05))
         ctx.feature("a headrest")
@@ -240,7 +355,15 @@ def rotated_back(w: float, h: float, y: float, z: float, thick: float = 0.06, ti
     return rotated(box(w, thick, h, 0, y, z), tilt, (1, 0, 0), (0, y, z))
 
 
-@category("dining_chair", "floor", ["dining", "kitchen"], 3.0, materials=["wood", "wood", "metal", "plastic"], colours=WOOD_COLOURS + ("red", "blue", "green", "yellow"), styles=["slatted", "solid-back", "upholstered"])
+@category(
+    "dining_chair",
+    "floor",
+    ["dining", "kitchen"],
+    3.0,
+    materials=["wood", "wood", "metal", "plastic"],
+    colours=WOOD_COLOURS + ("red", "blue", "green", "yellow"),
+    styles=["slatted", "solid-back", "upholstered"],
+)
 def dining_chair(ctx: Ctx) -> None:
     w, d = ctx.u(0.42, 0.48) * ctx.s, ctx.u(0.42, 0.5)
     seat_z, back_h = ctx.u(0.44, 0.48), ctx.u(0.4, 0.5)
@@ -262,7 +385,15 @@ def dining_chair(ctx: Ctx) -> None:
         ctx.feature(f"a {c} padded seat")
 
 
-@category("stool", "floor", ["kitchen", "dining", "office"], 1.2, materials=["wood", "metal", "plastic"], colours=WOOD_COLOURS + ("red", "black", "silver"), styles=["bar", "low"])
+@category(
+    "stool",
+    "floor",
+    ["kitchen", "dining", "office"],
+    1.2,
+    materials=["wood", "metal", "plastic"],
+    colours=WOOD_COLOURS + ("red", "black", "silver"),
+    styles=["bar", "low"],
+)
 def stool(ctx: Ctx) -> None:
     h = ctx.u(0.68, 0.78) if ctx.style == "bar" else ctx.u(0.42, 0.48)
     r = ctx.u(0.16, 0.2) * ctx.s
@@ -277,7 +408,15 @@ def stool(ctx: Ctx) -> None:
     ctx.feature(f"{'three' if n == 3 else 'four'} legs")
 
 
-@category("bench", "floor", ["corridor", "dining", "bedroom"], 0.8, materials=["wood", "wood", "metal"], colours=WOOD_COLOURS, styles=["plain", "backed", "storage"])
+@category(
+    "bench",
+    "floor",
+    ["corridor", "dining", "bedroom"],
+    0.8,
+    materials=["wood", "wood", "metal"],
+    colours=WOOD_COLOURS,
+    styles=["plain", "backed", "storage"],
+)
 def bench(ctx: Ctx) -> None:
     w, d, h = ctx.u(1.0, 1.5) * ctx.s, ctx.u(0.35, 0.45), ctx.u(0.43, 0.48)
     ctx.add(box(w, d, 0.05, 0, 0, h - 0.05))
@@ -294,7 +433,15 @@ def bench(ctx: Ctx) -> None:
         ctx.feature("a backrest")
 
 
-@category("wardrobe", "wall", ["bedroom", "corridor"], 1.5, materials=["wood"], colours=WOOD_COLOURS, styles=["two-door", "three-door", "mirrored"])
+@category(
+    "wardrobe",
+    "wall",
+    ["bedroom", "corridor"],
+    1.5,
+    materials=["wood"],
+    colours=WOOD_COLOURS,
+    styles=["two-door", "three-door", "mirrored"],
+)
 def wardrobe(ctx: Ctx) -> None:
     n = 3 if ctx.style == "three-door" else 2
     w, d, h = n * ctx.u(0.45, 0.55) * ctx.s, ctx.u(0.55, 0.62), ctx.u(1.9, 2.2)
@@ -337,7 +484,9 @@ def dresser(ctx: Ctx) -> None:
 BOOK_COLOURS = ("red", "blue", "green", "yellow", "white", "navy", "dark red", "orange", "black", "teal")
 
 
-def book_row(ctx: Ctx, x0: float, x1: float, z: float, y: float, depth: float, max_h: float, palette: tuple[str, ...]) -> None:
+def book_row(
+    ctx: Ctx, x0: float, x1: float, z: float, y: float, depth: float, max_h: float, palette: tuple[str, ...]
+) -> None:
     """Books standing side by side from x0 towards x1 on a shelf at height z (a random share of it).
 
     ``palette`` is a few colours per piece of furniture: each colour is one renderer geom.
@@ -351,7 +500,15 @@ def book_row(ctx: Ctx, x0: float, x1: float, z: float, y: float, depth: float, m
         x += t + 0.003
 
 
-@category("bookshelf", "wall", ["living", "office", "bedroom"], 2.0, materials=["wood", "wood", "metal"], colours=WOOD_COLOURS, styles=["tall", "low", "ladder"])
+@category(
+    "bookshelf",
+    "wall",
+    ["living", "office", "bedroom"],
+    2.0,
+    materials=["wood", "wood", "metal"],
+    colours=WOOD_COLOURS,
+    styles=["tall", "low", "ladder"],
+)
 def bookshelf(ctx: Ctx) -> None:
     w, d = ctx.u(0.6, 1.0) * ctx.s, ctx.u(0.28, 0.36)
     n = ctx.pick((4, 5)) if ctx.style != "low" else 2
@@ -372,7 +529,15 @@ def bookshelf(ctx: Ctx) -> None:
     ctx.surface_heights.append(h)
 
 
-@category("cabinet", "wall", ["kitchen", "living", "dining", "bathroom"], 1.5, materials=["wood", "wood", "metal"], colours=WOOD_COLOURS + ("cream", "light grey", "navy", "green"), styles=["sideboard", "base", "glass-door"])
+@category(
+    "cabinet",
+    "wall",
+    ["kitchen", "living", "dining", "bathroom"],
+    1.5,
+    materials=["wood", "wood", "metal"],
+    colours=WOOD_COLOURS + ("cream", "light grey", "navy", "green"),
+    styles=["sideboard", "base", "glass-door"],
+)
 def cabinet(ctx: Ctx) -> None:
     n = ctx.pick((2, 3, 4)) if ctx.style == "sideboard" else 2
     w, d = n * ctx.u(0.38, 0.45) * ctx.s, ctx.u(0.42, 0.6)
@@ -390,12 +555,16 @@ def cabinet(ctx: Ctx) -> None:
                 ctx.add(box(dw - 0.12, 0.01, 0.015, x, d / 2 - 0.3, k * (h - 0.1) / 4), "glass", "light grey")
         else:
             ctx.add(box(dw - 0.02, 0.02, h - leg - 0.04, x, d / 2, leg + 0.02))
-        _bar_handle(ctx, x + (dw / 2 - 0.05) * (1 if i % 2 else -1), d / 2 + 0.01, leg + (h - leg) * 0.55, leg + (h - leg) * 0.7)
+        _bar_handle(
+            ctx, x + (dw / 2 - 0.05) * (1 if i % 2 else -1), d / 2 + 0.01, leg + (h - leg) * 0.55, leg + (h - leg) * 0.7
+        )
     ctx.feature("glass doors" if ctx.style == "glass-door" else f"{n} doors")
     ctx.surface_heights.append(h)
 
 
-@category("nightstand", "floor", ["bedroom"], 2.0, materials=["wood"], colours=WOOD_COLOURS, styles=["drawer", "open-shelf"])
+@category(
+    "nightstand", "floor", ["bedroom"], 2.0, materials=["wood"], colours=WOOD_COLOURS, styles=["drawer", "open-shelf"]
+)
 def nightstand(ctx: Ctx) -> None:
     w, d, h = ctx.u(0.4, 0.55) * ctx.s, ctx.u(0.35, 0.42), ctx.u(0.48, 0.6)
     _legs(ctx, _corners(w, d, 0.03), 0.12, 0.015, "wood", ctx.pick(LEG_COLOURS))
@@ -413,7 +582,15 @@ def nightstand(ctx: Ctx) -> None:
     ctx.surface_heights.append(h)
 
 
-@category("tv_stand", "wall", ["living"], 1.2, materials=["wood", "wood", "metal"], colours=WOOD_COLOURS, styles=["open", "closed"])
+@category(
+    "tv_stand",
+    "wall",
+    ["living"],
+    1.2,
+    materials=["wood", "wood", "metal"],
+    colours=WOOD_COLOURS,
+    styles=["open", "closed"],
+)
 def tv_stand(ctx: Ctx) -> None:
     w, d, h = ctx.u(1.2, 1.8) * ctx.s, ctx.u(0.38, 0.45), ctx.u(0.42, 0.55)
     _legs(ctx, _corners(w, d, 0.04), 0.08, 0.02, "metal", "black")
@@ -434,7 +611,9 @@ def tv_stand(ctx: Ctx) -> None:
     ctx.surface_heights.append(h)
 
 
-@category("shoe_rack", "wall", ["corridor", "bedroom"], 0.5, materials=["wood", "metal"], colours=WOOD_COLOURS + ("silver",))
+@category(
+    "shoe_rack", "wall", ["corridor", "bedroom"], 0.5, materials=["wood", "metal"], colours=WOOD_COLOURS + ("silver",)
+)
 def shoe_rack(ctx: Ctx) -> None:
     w, d, h = ctx.u(0.6, 0.9) * ctx.s, ctx.u(0.28, 0.33), ctx.u(0.45, 0.6)
     for sx in (-1, 1):
@@ -452,9 +631,16 @@ def shoe_rack(ctx: Ctx) -> None:
     ctx.surface_heights.append(h)
 
 
-@category("coat_rack", "floor", ["corridor", "bedroom"], 0.5, materials=["wood", "metal"], colours=("dark brown", "black", "light brown", "white", "silver"))
+@category(
+    "coat_rack",
+    "floor",
+    ["corridor", "bedroom"],
+    0.5,
+    materials=["wood", "metal"],
+    colours=("dark brown", "black", "light brown", "white", "silver"),
+)
 def coat_rack(ctx: Ctx) -> None:
-    h = ctx.u(1.65, 1.85) * ctx.s ** 0.3
+    h = ctx.u(1.65, 1.85) * ctx.s**0.3
     for x, y in ring_positions(3, 0.25, ctx.u(0, 2)):
         ctx.add(rod((0, 0, 0.15), (x, y, 0.0), 0.015))
     ctx.add(cyl(0.022, h, 0, 0, 0))

@@ -4,10 +4,34 @@ from __future__ import annotations
 
 import numpy as np
 
-from generators.asset_library.core import Ctx, box, category, cyl, ellipsoid, revolve, ring_positions, rod, torus, vessel
+from generators.asset_library.core import (
+    Ctx,
+    box,
+    category,
+    cyl,
+    ellipsoid,
+    revolve,
+    ring_positions,
+    rod,
+    torus,
+    vessel,
+)
 
 APPLIANCE_COLOURS = ("white", "white", "silver", "black", "cream", "dark grey")
-CROCKERY_COLOURS = ("white", "white", "cream", "blue", "red", "green", "yellow", "black", "grey", "teal", "pink", "orange")
+CROCKERY_COLOURS = (
+    "white",
+    "white",
+    "cream",
+    "blue",
+    "red",
+    "green",
+    "yellow",
+    "black",
+    "grey",
+    "teal",
+    "pink",
+    "orange",
+)
 KITCHEN = ("kitchen",)
 
 
@@ -19,7 +43,15 @@ def _handle_bar(ctx: Ctx, p0: tuple, p1: tuple, out: float = 0.04, colour: str =
     ctx.add(rod(b, b + (0, out, 0), 0.007), "metal", colour)
 
 
-@category("fridge", "wall", KITCHEN, 1.2, materials=["metal", "plastic"], colours=APPLIANCE_COLOURS + ("red", "light blue"), styles=["bottom-freezer", "side-by-side", "retro"])
+@category(
+    "fridge",
+    "wall",
+    KITCHEN,
+    1.2,
+    materials=["metal", "plastic"],
+    colours=APPLIANCE_COLOURS + ("red", "light blue"),
+    styles=["bottom-freezer", "side-by-side", "retro"],
+)
 def fridge(ctx: Ctx) -> None:
     side = ctx.style == "side-by-side"
     w = ctx.u(0.85, 0.95) if side else ctx.u(0.58, 0.7) * ctx.s
@@ -44,7 +76,7 @@ def fridge(ctx: Ctx) -> None:
 
 @category("oven", "wall", KITCHEN, 0.9, materials=["metal"], colours=APPLIANCE_COLOURS, styles=["gas", "electric"])
 def oven(ctx: Ctx) -> None:
-    w, d, h = ctx.u(0.58, 0.62) * ctx.s ** 0.5, ctx.u(0.58, 0.62), ctx.u(0.85, 0.92)
+    w, d, h = ctx.u(0.58, 0.62) * ctx.s**0.5, ctx.u(0.58, 0.62), ctx.u(0.85, 0.92)
     ctx.add(box(w, d, h))
     ctx.add(box(w - 0.08, 0.012, h * 0.45, 0, d / 2, 0.12), "glass", "black")
     _handle_bar(ctx, (-w / 2 + 0.06, d / 2, 0.12 + h * 0.48), (w / 2 - 0.06, d / 2, 0.12 + h * 0.48))
@@ -67,17 +99,31 @@ def oven(ctx: Ctx) -> None:
 def microwave(ctx: Ctx) -> None:
     w, d, h = ctx.u(0.44, 0.52) * ctx.s, ctx.u(0.34, 0.4) * ctx.s, ctx.u(0.26, 0.31) * ctx.s
     ctx.add(box(w, d, h, 0, 0, 0.01))
-    for x, y in ((-w / 2 + 0.04, -d / 2 + 0.04), (w / 2 - 0.04, -d / 2 + 0.04), (-w / 2 + 0.04, d / 2 - 0.04), (w / 2 - 0.04, d / 2 - 0.04)):
+    for x, y in (
+        (-w / 2 + 0.04, -d / 2 + 0.04),
+        (w / 2 - 0.04, -d / 2 + 0.04),
+        (-w / 2 + 0.04, d / 2 - 0.04),
+        (w / 2 - 0.04, d / 2 - 0.04),
+    ):
         ctx.add(cyl(0.012, 0.01, x, y, 0), "rubber", "black")
     ctx.add(box(w * 0.62, 0.01, h * 0.7, -w * 0.14, d / 2, 0.01 + h * 0.15), "glass", "black")
     ctx.add(box(w * 0.2, 0.008, h * 0.7, w * 0.36, d / 2, 0.01 + h * 0.15), "plastic", "dark grey")
-    ctx.add(rod((w * 0.36, d / 2, 0.01 + h * 0.35), (w * 0.36, d / 2 + 0.02, 0.01 + h * 0.35), 0.02), "plastic", "silver")
+    ctx.add(
+        rod((w * 0.36, d / 2, 0.01 + h * 0.35), (w * 0.36, d / 2 + 0.02, 0.01 + h * 0.35), 0.02), "plastic", "silver"
+    )
     ctx.feature("a dark glass door")
     ctx.feature("a control panel")
     ctx.surface_heights.append(h + 0.01)
 
 
-@category("washing_machine", "wall", ["bathroom", "kitchen"], 0.7, materials=["metal", "plastic"], colours=("white", "white", "silver", "dark grey"))
+@category(
+    "washing_machine",
+    "wall",
+    ["bathroom", "kitchen"],
+    0.7,
+    materials=["metal", "plastic"],
+    colours=("white", "white", "silver", "dark grey"),
+)
 def washing_machine(ctx: Ctx) -> None:
     w, d, h = ctx.u(0.58, 0.62), ctx.u(0.55, 0.62), ctx.u(0.82, 0.88)
     ctx.add(box(w, d, h))
@@ -90,7 +136,15 @@ def washing_machine(ctx: Ctx) -> None:
     ctx.surface_heights.append(h)
 
 
-@category("kettle", "surface", KITCHEN, 1.0, materials=["metal", "plastic"], colours=("silver", "white", "black", "red", "cream", "light blue"), styles=["jug", "stovetop"])
+@category(
+    "kettle",
+    "surface",
+    KITCHEN,
+    1.0,
+    materials=["metal", "plastic"],
+    colours=("silver", "white", "black", "red", "cream", "light blue"),
+    styles=["jug", "stovetop"],
+)
 def kettle(ctx: Ctx) -> None:
     r, h = ctx.u(0.07, 0.09) * ctx.s, ctx.u(0.18, 0.24) * ctx.s
     if ctx.style == "jug":
@@ -102,13 +156,22 @@ def kettle(ctx: Ctx) -> None:
         ctx.add(box(0.05, 0.04, 0.04, 0, r - 0.01, h - 0.04))
         ctx.feature("a black handle")
     else:
-        ctx.add(revolve([(0, 0), (r * 1.3, 0), (r * 1.35, h * 0.3), (r * 0.6, h * 0.75), (0.03, h * 0.8), (0, h * 0.8)]))
+        ctx.add(
+            revolve([(0, 0), (r * 1.3, 0), (r * 1.35, h * 0.3), (r * 0.6, h * 0.75), (0.03, h * 0.8), (0, h * 0.8)])
+        )
         ctx.add(rod((0, r, h * 0.25), (0, r * 1.9, h * 0.7), 0.014))
         ctx.add(torus(r * 0.7, 0.01, (0, 0, h * 0.95), axis="y"), "plastic", "black")
         ctx.feature("a curved spout")
 
 
-@category("toaster", "surface", KITCHEN, 0.8, materials=["metal", "plastic"], colours=("silver", "white", "red", "black", "cream", "light blue"))
+@category(
+    "toaster",
+    "surface",
+    KITCHEN,
+    0.8,
+    materials=["metal", "plastic"],
+    colours=("silver", "white", "red", "black", "cream", "light blue"),
+)
 def toaster(ctx: Ctx) -> None:
     w, d, h = ctx.u(0.26, 0.32) * ctx.s, ctx.u(0.15, 0.19), ctx.u(0.18, 0.21)
     ctx.add(box(w, d, h))
@@ -119,7 +182,9 @@ def toaster(ctx: Ctx) -> None:
     ctx.feature("two bread slots")
 
 
-@category("coffee_maker", "surface", KITCHEN, 0.5, materials=["plastic", "metal"], colours=("black", "silver", "white", "red"))
+@category(
+    "coffee_maker", "surface", KITCHEN, 0.5, materials=["plastic", "metal"], colours=("black", "silver", "white", "red")
+)
 def coffee_maker(ctx: Ctx) -> None:
     w, d, h = ctx.u(0.2, 0.25) * ctx.s, ctx.u(0.24, 0.3), ctx.u(0.32, 0.38)
     ctx.add(box(w, d, 0.04))
@@ -130,7 +195,14 @@ def coffee_maker(ctx: Ctx) -> None:
     ctx.feature("a glass carafe")
 
 
-@category("mug", "surface", ["kitchen", "office", "dining", "living"], 2.0, materials=["ceramic", "ceramic", "metal"], colours=CROCKERY_COLOURS)
+@category(
+    "mug",
+    "surface",
+    ["kitchen", "office", "dining", "living"],
+    2.0,
+    materials=["ceramic", "ceramic", "metal"],
+    colours=CROCKERY_COLOURS,
+)
 def mug(ctx: Ctx) -> None:
     r, h = ctx.u(0.038, 0.046) * ctx.s, ctx.u(0.085, 0.105) * ctx.s
     ctx.add(vessel([(r * 0.9, 0), (r, 0.01), (r, h)], 0.005))
@@ -138,13 +210,23 @@ def mug(ctx: Ctx) -> None:
     ctx.feature("a round handle")
 
 
-@category("bowl", "surface", ["kitchen", "dining"], 1.5, materials=["ceramic", "wood", "glass"], colours=CROCKERY_COLOURS)
+@category(
+    "bowl", "surface", ["kitchen", "dining"], 1.5, materials=["ceramic", "wood", "glass"], colours=CROCKERY_COLOURS
+)
 def bowl(ctx: Ctx) -> None:
     r, h = ctx.u(0.07, 0.11) * ctx.s, ctx.u(0.05, 0.08) * ctx.s
     ctx.add(vessel([(r * 0.45, 0), (r * 0.8, h * 0.4), (r, h)], 0.005, sections=24))
 
 
-@category("plate_stack", "surface", ["kitchen", "dining"], 1.0, materials=["ceramic"], colours=CROCKERY_COLOURS, noun="stack of plates")
+@category(
+    "plate_stack",
+    "surface",
+    ["kitchen", "dining"],
+    1.0,
+    materials=["ceramic"],
+    colours=CROCKERY_COLOURS,
+    noun="stack of plates",
+)
 def plate_stack(ctx: Ctx) -> None:
     r, n = ctx.u(0.1, 0.14) * ctx.s, int(ctx.rng.integers(3, 9))
     for i in range(n):
@@ -152,7 +234,15 @@ def plate_stack(ctx: Ctx) -> None:
     ctx.feature(f"{n} plates")
 
 
-@category("bottle", "surface", ["kitchen", "dining", "living"], 1.5, materials=["glass", "plastic"], colours=("green", "dark green", "light blue", "white", "brown", "dark red"), styles=["wine", "water", "milk"])
+@category(
+    "bottle",
+    "surface",
+    ["kitchen", "dining", "living"],
+    1.5,
+    materials=["glass", "plastic"],
+    colours=("green", "dark green", "light blue", "white", "brown", "dark red"),
+    styles=["wine", "water", "milk"],
+)
 def bottle(ctx: Ctx) -> None:
     if ctx.style == "wine":
         r, h = 0.037, ctx.u(0.28, 0.32)
@@ -166,12 +256,24 @@ def bottle(ctx: Ctx) -> None:
     ctx.add(revolve([(a * ctx.s, b * ctx.s) for a, b in prof]))
     cap = ctx.pick(("red", "white", "black", "blue", "gold"))
     ctx.add(cyl(0.016 * ctx.s, 0.025, 0, 0, h * ctx.s - 0.01, sections=12), "plastic", cap)
-    ctx.add(cyl(r * ctx.s + 0.001, h * 0.25 * ctx.s, 0, 0, h * 0.2 * ctx.s, sections=20), "paper", ctx.pick(("white", "cream", "yellow")))
+    ctx.add(
+        cyl(r * ctx.s + 0.001, h * 0.25 * ctx.s, 0, 0, h * 0.2 * ctx.s, sections=20),
+        "paper",
+        ctx.pick(("white", "cream", "yellow")),
+    )
     ctx.feature("a paper label")
     ctx.feature(f"a {cap} cap")
 
 
-@category("pot", "surface", KITCHEN, 0.8, materials=["metal", "metal", "ceramic"], colours=("silver", "black", "red", "dark grey", "orange", "teal"), noun="cooking pot")
+@category(
+    "pot",
+    "surface",
+    KITCHEN,
+    0.8,
+    materials=["metal", "metal", "ceramic"],
+    colours=("silver", "black", "red", "dark grey", "orange", "teal"),
+    noun="cooking pot",
+)
 def pot(ctx: Ctx) -> None:
     r, h = ctx.u(0.09, 0.13) * ctx.s, ctx.u(0.1, 0.16) * ctx.s
     ctx.add(vessel([(r, 0), (r, h)], 0.004, sections=24))
@@ -182,7 +284,15 @@ def pot(ctx: Ctx) -> None:
     ctx.feature("a lid and two side handles")
 
 
-@category("pan", "surface", KITCHEN, 0.6, materials=["metal"], colours=("black", "dark grey", "silver", "red"), noun="frying pan")
+@category(
+    "pan",
+    "surface",
+    KITCHEN,
+    0.6,
+    materials=["metal"],
+    colours=("black", "dark grey", "silver", "red"),
+    noun="frying pan",
+)
 def pan(ctx: Ctx) -> None:
     r = ctx.u(0.1, 0.14) * ctx.s
     ctx.add(vessel([(r * 0.85, 0), (r, 0.05)], 0.004, sections=24))
@@ -190,7 +300,15 @@ def pan(ctx: Ctx) -> None:
     ctx.feature("a long black handle")
 
 
-@category("fruit_bowl", "surface", ["kitchen", "dining", "living"], 0.8, materials=["ceramic", "wood", "metal"], colours=CROCKERY_COLOURS + ("light brown",), noun="fruit bowl")
+@category(
+    "fruit_bowl",
+    "surface",
+    ["kitchen", "dining", "living"],
+    0.8,
+    materials=["ceramic", "wood", "metal"],
+    colours=CROCKERY_COLOURS + ("light brown",),
+    noun="fruit bowl",
+)
 def fruit_bowl(ctx: Ctx) -> None:
     r, h = ctx.u(0.12, 0.16) * ctx.s, ctx.u(0.06, 0.09)
     ctx.add(vessel([(r * 0.5, 0), (r, h)], 0.006, sections=24))
@@ -204,7 +322,9 @@ def fruit_bowl(ctx: Ctx) -> None:
     ctx.feature(" and ".join(kinds))
 
 
-@category("teapot", "surface", ["kitchen", "dining", "living"], 0.4, materials=["ceramic", "metal"], colours=CROCKERY_COLOURS)
+@category(
+    "teapot", "surface", ["kitchen", "dining", "living"], 0.4, materials=["ceramic", "metal"], colours=CROCKERY_COLOURS
+)
 def teapot(ctx: Ctx) -> None:
     r = ctx.u(0.07, 0.09) * ctx.s
     ctx.add(revolve([(0, 0), (r * 0.7, 0), (r, r * 0.6), (r * 0.85, r * 1.2), (r * 0.45, r * 1.4), (0, r * 1.4)]))
@@ -214,10 +334,26 @@ def teapot(ctx: Ctx) -> None:
     ctx.feature("a spout")
 
 
-@category("wine_glass", "surface", ["dining", "kitchen"], 0.5, materials=["glass"], colours=("light blue", "white", "light grey"))
+@category(
+    "wine_glass",
+    "surface",
+    ["dining", "kitchen"],
+    0.5,
+    materials=["glass"],
+    colours=("light blue", "white", "light grey"),
+)
 def wine_glass(ctx: Ctx) -> None:
     s = ctx.s
     stem = 0.1 * s
-    ctx.add(revolve([(0, 0), (0.035 * s, 0), (0.035 * s, 0.004), (0.005, 0.012), (0.005, stem), (0, stem)], sections=16))
-    ctx.add(vessel([(0.006, 0), (0.03 * s, 0.03 * s), (0.037 * s, 0.07 * s), (0.032 * s, 0.11 * s)], 0.002, z=stem - 0.002, sections=16))
+    ctx.add(
+        revolve([(0, 0), (0.035 * s, 0), (0.035 * s, 0.004), (0.005, 0.012), (0.005, stem), (0, stem)], sections=16)
+    )
+    ctx.add(
+        vessel(
+            [(0.006, 0), (0.03 * s, 0.03 * s), (0.037 * s, 0.07 * s), (0.032 * s, 0.11 * s)],
+            0.002,
+            z=stem - 0.002,
+            sections=16,
+        )
+    )
     ctx.feature("a thin stem")

@@ -10,7 +10,15 @@ from generators.asset_library.furniture import BOOK_COLOURS
 OFFICE_COLOURS = ("black", "grey", "white", "blue", "red", "green", "light grey", "navy")
 
 
-@category("filing_cabinet", "wall", ["office"], 0.8, materials=["metal"], colours=("grey", "light grey", "black", "white", "dark grey", "blue"), styles=["two-drawer", "four-drawer"])
+@category(
+    "filing_cabinet",
+    "wall",
+    ["office"],
+    0.8,
+    materials=["metal"],
+    colours=("grey", "light grey", "black", "white", "dark grey", "blue"),
+    styles=["two-drawer", "four-drawer"],
+)
 def filing_cabinet(ctx: Ctx) -> None:
     n = 2 if ctx.style == "two-drawer" else 4
     w, d = ctx.u(0.4, 0.48), ctx.u(0.55, 0.65)
@@ -36,15 +44,31 @@ def whiteboard(ctx: Ctx) -> None:
         ctx.add(box(0.02, 0.02, h, sx * (w / 2 + 0.0), 0.002, 0.04), "metal", "silver")
     ctx.add(box(w * 0.4, 0.06, 0.02, 0, 0.03, 0.0), "metal", "silver")
     for k, c in enumerate(("black", "blue", "red")):
-        ctx.add(rod((-0.1 + k * 0.06, 0.04, 0.03), (-0.1 + k * 0.06 + 0.04, 0.04, 0.03), 0.007, sections=6), "plastic", c)
+        ctx.add(
+            rod((-0.1 + k * 0.06, 0.04, 0.03), (-0.1 + k * 0.06 + 0.04, 0.04, 0.03), 0.007, sections=6), "plastic", c
+        )
     if ctx.chance(0.6):
         for k in range(3):
-            ctx.add(box(w * ctx.u(0.2, 0.6), 0.002, 0.012, ctx.u(-w * 0.15, w * 0.15), 0.0085, 0.04 + h * (0.75 - 0.15 * k)), "plastic", ctx.pick(("black", "blue", "red")))
+            ctx.add(
+                box(
+                    w * ctx.u(0.2, 0.6), 0.002, 0.012, ctx.u(-w * 0.15, w * 0.15), 0.0085, 0.04 + h * (0.75 - 0.15 * k)
+                ),
+                "plastic",
+                ctx.pick(("black", "blue", "red")),
+            )
         ctx.feature("writing on it")
     ctx.feature("a marker tray")
 
 
-@category("book_stack", "surface", ["office", "living", "bedroom"], 1.5, materials=["paper"], colours=BOOK_COLOURS, noun="stack of books")
+@category(
+    "book_stack",
+    "surface",
+    ["office", "living", "bedroom"],
+    1.5,
+    materials=["paper"],
+    colours=BOOK_COLOURS,
+    noun="stack of books",
+)
 def book_stack(ctx: Ctx) -> None:
     n = int(ctx.rng.integers(2, 7))
     z = 0.0
@@ -57,7 +81,15 @@ def book_stack(ctx: Ctx) -> None:
     ctx.feature(f"{n} books")
 
 
-@category("binder", "surface", ["office"], 0.6, materials=["plastic", "paper"], colours=OFFICE_COLOURS + ("yellow",), noun="row of binders")
+@category(
+    "binder",
+    "surface",
+    ["office"],
+    0.6,
+    materials=["plastic", "paper"],
+    colours=OFFICE_COLOURS + ("yellow",),
+    noun="row of binders",
+)
 def binder(ctx: Ctx) -> None:
     n = int(ctx.rng.integers(1, 6))
     h, d = ctx.u(0.29, 0.32), ctx.u(0.26, 0.29)
@@ -71,14 +103,26 @@ def binder(ctx: Ctx) -> None:
     ctx.feature("white spine labels" if n > 1 else "a white spine label")
 
 
-@category("desk_organiser", "surface", ["office"], 0.5, materials=["plastic", "metal", "wood"], colours=("black", "white", "silver", "light brown", "grey"), noun="desk organiser")
+@category(
+    "desk_organiser",
+    "surface",
+    ["office"],
+    0.5,
+    materials=["plastic", "metal", "wood"],
+    colours=("black", "white", "silver", "light brown", "grey"),
+    noun="desk organiser",
+)
 def desk_organiser(ctx: Ctx) -> None:
     w, d = ctx.u(0.18, 0.26) * ctx.s, ctx.u(0.1, 0.14)
     ctx.add(box(w, d, 0.02))
     ctx.add(vessel([(0.035, 0), (0.035, 0.1)], 0.003, -w / 2 + 0.045, 0, 0.02, sections=14))
-    for k in range(int(ctx.rng.integers(3, 6))):
+    for _ in range(int(ctx.rng.integers(3, 6))):
         top = (-w / 2 + 0.045 + ctx.u(-0.025, 0.025), ctx.u(-0.025, 0.025), 0.16 + ctx.u(0, 0.03))
-        ctx.add(rod((-w / 2 + 0.045, 0, 0.03), top, 0.004, sections=6), "plastic", ctx.pick(("blue", "red", "black", "yellow", "green")))
+        ctx.add(
+            rod((-w / 2 + 0.045, 0, 0.03), top, 0.004, sections=6),
+            "plastic",
+            ctx.pick(("blue", "red", "black", "yellow", "green")),
+        )
     ctx.add(box(w * 0.45, d - 0.01, 0.05, w * 0.22, 0, 0.02))
     ctx.add(box(w * 0.4, d * 0.7, 0.035, w * 0.22, 0, 0.03), "paper", "yellow")
     ctx.feature("pens and sticky notes")
@@ -91,14 +135,34 @@ def globe(ctx: Ctx) -> None:
     ctx.add(cyl(0.012, r * 0.5, 0, 0, 0.02), "wood", "dark brown")
     c = (0, 0, 0.02 + r * 0.5 + r + 0.02)
     ctx.add(ellipsoid(r, r, r, *c, count=16))
-    for k in range(3):
+    for _ in range(3):
         a = ctx.u(0, 2 * np.pi)
-        ctx.add(ellipsoid(r * 0.45, r * 0.35, r * 0.35, c[0] + r * 0.75 * np.cos(a), c[1] + r * 0.75 * np.sin(a), c[2] + ctx.u(-r * 0.4, r * 0.4), count=8), "paper", ctx.pick(("green", "tan", "olive")))
+        ctx.add(
+            ellipsoid(
+                r * 0.45,
+                r * 0.35,
+                r * 0.35,
+                c[0] + r * 0.75 * np.cos(a),
+                c[1] + r * 0.75 * np.sin(a),
+                c[2] + ctx.u(-r * 0.4, r * 0.4),
+                count=8,
+            ),
+            "paper",
+            ctx.pick(("green", "tan", "olive")),
+        )
     ctx.add(rotated(torus(r + 0.015, 0.005, c, axis="x", sections=20), 0.4, (1, 0, 0), c), "metal", "gold")
     ctx.feature("a brass meridian")
 
 
-@category("trash_can", "floor", ["kitchen", "office", "bathroom", "bedroom"], 1.2, materials=["metal", "plastic"], colours=("silver", "black", "white", "grey", "green", "red", "blue"), styles=["pedal", "open", "swing-lid"])
+@category(
+    "trash_can",
+    "floor",
+    ["kitchen", "office", "bathroom", "bedroom"],
+    1.2,
+    materials=["metal", "plastic"],
+    colours=("silver", "black", "white", "grey", "green", "red", "blue"),
+    styles=["pedal", "open", "swing-lid"],
+)
 def trash_can(ctx: Ctx) -> None:
     r, h = ctx.u(0.12, 0.17) * ctx.s, ctx.u(0.3, 0.45) * ctx.s
     if ctx.style == "open":
@@ -113,12 +177,21 @@ def trash_can(ctx: Ctx) -> None:
         ctx.add(box(0.08, 0.06, 0.015, 0, r + 0.02, 0.02), "metal", lid_c)
         ctx.feature("a foot pedal")
     else:
-        ctx.add(revolve([(0, 0), (r + 0.004, 0), (r, 0.05), (r * 0.5, 0.1), (0, 0.11)], z=h, sections=20), "plastic", lid_c)
+        ctx.add(
+            revolve([(0, 0), (r + 0.004, 0), (r, 0.05), (r * 0.5, 0.1), (0, 0.11)], z=h, sections=20), "plastic", lid_c
+        )
         ctx.add(box(r * 1.2, 0.01, 0.05, 0, r * 0.4, h + 0.04), "plastic", "black")
         ctx.feature("a swing lid")
 
 
-@category("laundry_basket", "floor", ["bedroom", "bathroom"], 0.5, materials=["plastic", "fabric", "wood"], colours=("white", "grey", "beige", "light blue", "tan"))
+@category(
+    "laundry_basket",
+    "floor",
+    ["bedroom", "bathroom"],
+    0.5,
+    materials=["plastic", "fabric", "wood"],
+    colours=("white", "grey", "beige", "light blue", "tan"),
+)
 def laundry_basket(ctx: Ctx) -> None:
     w, d, h = ctx.u(0.4, 0.55) * ctx.s, ctx.u(0.3, 0.4) * ctx.s, ctx.u(0.3, 0.5)
     t = 0.012
@@ -126,7 +199,11 @@ def laundry_basket(ctx: Ctx) -> None:
     for sx in (-1, 1):
         ctx.add(box(t, d, h, sx * (w - t) / 2, 0, 0))
         for k in range(3):
-            ctx.add(box(t * 1.5, d * 0.7, 0.04, sx * (w - t) / 2, 0, h * (0.25 + 0.22 * k)), None, "dark grey" if ctx.colour == "white" else "white")
+            ctx.add(
+                box(t * 1.5, d * 0.7, 0.04, sx * (w - t) / 2, 0, h * (0.25 + 0.22 * k)),
+                None,
+                "dark grey" if ctx.colour == "white" else "white",
+            )
     for sy in (-1, 1):
         ctx.add(box(w, t, h, 0, sy * (d - t) / 2, 0))
     c = ctx.pick(("blue", "white", "pink", "red", "grey"))

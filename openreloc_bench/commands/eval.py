@@ -46,13 +46,26 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--timeout", type=float, default=300.0, help="per-query limit in seconds (0 = none, in-process)")
     p.add_argument("--ablations", action="store_true", help=f"also run the paper's ablation rows of {ABLATED_METHOD}")
     p.add_argument("--robustness", action="store_true", help="also localize the lighting 1-4 and displaced splits")
-    p.add_argument("--seeds", default="",
-                   help="comma-separated seeds: run every method that has a 'seed' setting once per seed and "
-                        "report the spread (tables/seeds.csv); deterministic methods run once")
-    p.add_argument("--method-config", action="append", default=[], metavar="NAME=YAML",
-                   help="config overrides for one method from a YAML mapping (repeatable)")
-    p.add_argument("--plugin", action="append", default=[], metavar="MODULE",
-                   help="import MODULE first (registers methods with openreloc_bench.methods.register)")
+    p.add_argument(
+        "--seeds",
+        default="",
+        help="comma-separated seeds: run every method that has a 'seed' setting once per seed and "
+        "report the spread (tables/seeds.csv); deterministic methods run once",
+    )
+    p.add_argument(
+        "--method-config",
+        action="append",
+        default=[],
+        metavar="NAME=YAML",
+        help="config overrides for one method from a YAML mapping (repeatable)",
+    )
+    p.add_argument(
+        "--plugin",
+        action="append",
+        default=[],
+        metavar="MODULE",
+        help="import MODULE first (registers methods with openreloc_bench.methods.register)",
+    )
 
 
 def _csv(s: str) -> list[str]:
@@ -106,7 +119,9 @@ def suite_scenes(suite_path: Path, data: Path) -> list[str]:
         try:
             from generators.generate import generate_scene
         except ImportError as e:
-            raise ConfigError(f"scene '{spec.name}' is missing under {data} and the generator is not available ({e})") from None
+            raise ConfigError(
+                f"scene '{spec.name}' is missing under {data} and the generator is not available ({e})"
+            ) from None
         print(f"generating scene {spec.name} ({state}) ...", flush=True)
         generate_scene(spec, data, resume=state == "partial")
     return [s.name for s in specs]
@@ -150,8 +165,10 @@ def run(args: argparse.Namespace) -> int:
     )  # fmt: skip
     report = runner.evaluate(cfg)
     queries = runner.load_run_queries(args.out)
-    print(f"maps: {report.maps_built} built, {report.maps_cached} cached; jobs: {report.jobs_run} run, "
-          f"{report.jobs_skipped} resumed; {report.wall_s:.1f} s")
+    print(
+        f"maps: {report.maps_built} built, {report.maps_cached} cached; jobs: {report.jobs_run} run, "
+        f"{report.jobs_skipped} resumed; {report.wall_s:.1f} s"
+    )
     if not queries.empty:
         _, suite, seeds = tables.write_tables(args.out / "tables", queries, runner.load_map_records(args.out))
         print(tables.compact(suite))

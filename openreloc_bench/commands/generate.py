@@ -18,8 +18,11 @@ ORDER = 10
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("suite", type=Path, help="suite YAML, e.g. scenes/smoke.yaml")
     parser.add_argument("--out", type=Path, required=True, help="output directory (scenes go to OUT/<name>/)")
-    parser.add_argument("--resume", action="store_true",
-                        help="reuse finished frames of an interrupted run (without it, existing scenes are regenerated)")
+    parser.add_argument(
+        "--resume",
+        action="store_true",
+        help="reuse finished frames of an interrupted run (without it, existing scenes are regenerated)",
+    )
     parser.add_argument("--workers", type=int, default=1, help="scenes generated in parallel (default 1)")
     parser.add_argument("--scenes", type=str, default=None, help="comma-separated scene names (default: all)")
 

@@ -45,8 +45,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scene", type=Path, required=True, help="scene directory")
     p.add_argument("--split", default="query", choices=QUERY_SPLITS, help="query split (default: query)")
     p.add_argument("--out", type=Path, required=True, help="result file to write")
-    p.add_argument("--track", default="oracle-mask", choices=TRACKS,
-                   help="oracle-mask: queries carry the dataset instance masks; predicted: RGB only")
+    p.add_argument(
+        "--track",
+        default="oracle-mask",
+        choices=TRACKS,
+        help="oracle-mask: queries carry the dataset instance masks; predicted: RGB only",
+    )
     p.add_argument("--diagnostics", type=Path, help="also write per-query diagnostics as JSON lines")
 
 
@@ -77,7 +81,9 @@ def localize_split(method: Relocalizer, seq: SceneSequence, track: str, progress
         if isinstance(res, PoseEstimate) and geometry.is_rigid(np.asarray(res.T_wc, dtype=np.float64)):
             records.append(QueryRecord(f.name, np.asarray(res.T_wc, dtype=np.float64), dt, None, res.diagnostics))
         elif isinstance(res, PoseEstimate):
-            records.append(QueryRecord(f.name, None, dt, "invalid pose (not a finite rigid transform)", res.diagnostics))
+            records.append(
+                QueryRecord(f.name, None, dt, "invalid pose (not a finite rigid transform)", res.diagnostics)
+            )
         elif isinstance(res, Failure):
             records.append(QueryRecord(f.name, None, dt, res.reason, res.diagnostics))
         else:
@@ -89,15 +95,21 @@ def summary(records: list[QueryRecord], gt: dict[str, np.ndarray] | None = None)
     """Printable lines: localized share, failure reasons, latency, and recall when ground truth exists."""
     n = len(records)
     ok = [r for r in records if r.T_wc is not None]
-    lines = [f"localized {len(ok)}/{n} queries; median latency {np.median([r.seconds for r in records]) if n else 0:.3f} s"]
+    lines = [
+        f"localized {len(ok)}/{n} queries; median latency {np.median([r.seconds for r in records]) if n else 0:.3f} s"
+    ]
     for reason, count in Counter(r.reason for r in records if r.T_wc is None).most_common():
         lines.append(f"  failed x{count}: {reason}")
     if gt and n:
-        te = np.array([geometry.translation_error(gt[r.name], r.T_wc) if r.T_wc is not None else np.inf for r in records])
+        te = np.array(
+            [geometry.translation_error(gt[r.name], r.T_wc) if r.T_wc is not None else np.inf for r in records]
+        )
         re = np.array([geometry.rotation_error(gt[r.name], r.T_wc) if r.T_wc is not None else np.inf for r in records])
-        lines.append(f"vs ground truth: recall@50cm {np.mean(te < 0.5):.1%}, @25cm {np.mean(te < 0.25):.1%}, "
-                     f"(25cm, 5deg) {np.mean((te < 0.25) & (re < 5)):.1%}; median error "
-                     f"{np.median(te) * 100:.1f} cm / {np.median(re):.2f} deg")
+        lines.append(
+            f"vs ground truth: recall@50cm {np.mean(te < 0.5):.1%}, @25cm {np.mean(te < 0.25):.1%}, "
+            f"(25cm, 5deg) {np.mean((te < 0.25) & (re < 5)):.1%}; median error "
+            f"{np.median(te) * 100:.1f} cm / {np.median(re):.2f} deg"
+        )
     return lines
 
 
@@ -119,12 +131,32 @@ def run(args: argparse.Namespace) -> int:
     method.load_map(args.map)
     records = localize_split(method, seq, args.track)
     poses = {r.name: r.T_wc for r in records if r.T_wc is not None}
-    write_results(args.out, poses, [f"method {args.method}", f"track {args.track}", f"split {args.split}",
-                                    f"localized {len(poses)}/{len(records)}"])
+    write_results(
+        args.out,
+        poses,
+        [
+            f"method {args.method}",
+            f"track {args.track}",
+            f"split {args.split}",
+            f"localized {len(poses)}/{len(records)}",
+        ],
+    )
     if args.diagnostics:
-        lines = [json.dumps(_json_safe({"name": r.name, "ok": r.T_wc is not None, "reason": r.reason,
-                                        "seconds": round(r.seconds, 4), "diagnostics": r.diagnostics}), sort_keys=True)
-                 for r in records]
+        lines = [
+            json.dumps(
+                _json_safe(
+                    {
+                        "name": r.name,
+                        "ok": r.T_wc is not None,
+                        "reason": r.reason,
+                        "seconds": round(r.seconds, 4),
+                        "diagnostics": r.diagnostics,
+                    }
+                ),
+                sort_keys=True,
+            )
+            for r in records
+        ]
         io.atomic_write_text(args.diagnostics, "\n".join(lines) + "\n")
     gt = dict(zip(seq.names, seq.poses))
     for line in summary(records, gt):

@@ -31,8 +31,14 @@ def add_method_arguments(p: argparse.ArgumentParser) -> None:
     """``--method``, ``--config`` and ``--set``: shared with ``localize``."""
     p.add_argument("--method", required=True, help="registered method name (see `openreloc-bench methods`)")
     p.add_argument("--config", type=Path, help="YAML mapping of method config fields")
-    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                   help="override one config field (dotted keys for nested sections; YAML values); repeatable")
+    p.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override one config field (dotted keys for nested sections; YAML values); repeatable",
+    )
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -87,6 +93,7 @@ def run(args: argparse.Namespace) -> int:
     method.build_map(seq, args.out)
     elapsed = time.perf_counter() - t0
     size = sum(p.stat().st_size for p in Path(args.out).rglob("*") if p.is_file())
-    print(f"{args.method}: map of {len(seq)} mapping frames written to {args.out} "
-          f"({size / 1e6:.3f} MB, {elapsed:.1f} s)")
+    print(
+        f"{args.method}: map of {len(seq)} mapping frames written to {args.out} ({size / 1e6:.3f} MB, {elapsed:.1f} s)"
+    )
     return 0

@@ -14,8 +14,12 @@ ORDER = 11
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("scene", type=Path, help="scene directory, e.g. data/smoke-room")
-    parser.add_argument("--out", type=Path, default=None,
-                        help="contact sheet PNG (default SCENE/preview.png); the plan goes next to it as *_plan.png")
+    parser.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        help="contact sheet PNG (default SCENE/preview.png); the plan goes next to it as *_plan.png",
+    )
     parser.add_argument("--frames", type=int, default=4, help="sample frames per split (default 4)")
 
 

@@ -24,7 +24,9 @@ ORDER = 45
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("submission", type=Path, metavar="SUBMISSION_DIR")
     p.add_argument("--data", type=Path, required=True, help="dataset directory (one sub-directory per scene)")
-    p.add_argument("--suite", type=Path, help="score every scene of this suite (default: the scenes the submission covers)")
+    p.add_argument(
+        "--suite", type=Path, help="score every scene of this suite (default: the scenes the submission covers)"
+    )
     p.add_argument("--splits", default="query", help="comma-separated query splits to score")
     p.add_argument("--method", help="name in the tables (default: the submission directory's name)")
     p.add_argument("--track", default="predicted", choices=TRACKS, help="track the submission was produced in")
@@ -39,8 +41,9 @@ def run(args: argparse.Namespace) -> int:
     else:
         scenes = score.submission_scenes(args.submission, args.data)
     splits = [s.strip() for s in args.splits.split(",") if s.strip()]
-    queries = score.score_submission(args.submission, args.data, scenes, splits,
-                                     args.method or args.submission.resolve().name, args.track)
+    queries = score.score_submission(
+        args.submission, args.data, scenes, splits, args.method or args.submission.resolve().name, args.track
+    )
     out = args.out or args.submission / "scores"
     maps = pd.DataFrame(columns=["map_hash", "scene", "map_mb", "mapping_time_s"])
     _, suite, _ = tables.write_tables(out / "tables", queries, maps)

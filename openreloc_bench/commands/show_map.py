@@ -17,7 +17,12 @@ ORDER = 45
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("map_dir", type=Path, help="map directory written by `openreloc-bench map`")
-    parser.add_argument("--out", type=Path, default=None, help="PNG path (default: MAP_DIR.png next to the map, so the map size is unchanged)")
+    parser.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        help="PNG path (default: MAP_DIR.png next to the map, so the map size is unchanged)",
+    )
 
 
 def draw_map(m: ObjectMap, out: Path) -> None:
@@ -38,13 +43,22 @@ def draw_map(m: ObjectMap, out: Path) -> None:
         a, b = m.landmarks[u].center, m.landmarks[v].center
         ax.plot([a[0], b[0]], [a[1], b[1]], "--" if d["kind"] == "overlap" else "-", color="k", lw=0.5, alpha=0.4)
     for lm in m.landmarks.values():
-        ax.annotate(f"{lm.id}:{lm.category or '?'}", lm.center[:2], fontsize=6, ha="center",
-                    color="k" if lm.valid else "0.5")
+        ax.annotate(
+            f"{lm.id}:{lm.category or '?'}", lm.center[:2], fontsize=6, ha="center", color="k" if lm.valid else "0.5"
+        )
     if m.reference_frames:
         T = np.stack([rf.T_wc for rf in m.reference_frames])
         fwd = T[:, :3, 2]
-        ax.quiver(T[:, 0, 3], T[:, 1, 3], fwd[:, 0], fwd[:, 1], color="tab:red", scale=25, width=0.003,
-                  label=f"reference frames ({len(T)})")
+        ax.quiver(
+            T[:, 0, 3],
+            T[:, 1, 3],
+            fwd[:, 0],
+            fwd[:, 1],
+            color="tab:red",
+            scale=25,
+            width=0.003,
+            label=f"reference frames ({len(T)})",
+        )
         ax.legend(loc="upper right", fontsize=7)
     ax.set_aspect("equal")
     ax.set_xlabel("x (m)")

@@ -30,7 +30,9 @@ EVAL_SEED_OFFSET = 500_000
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     # the defaults are the recipe of the shipped weights (openreloc_bench/vision/weights/config.json)
-    parser.add_argument("--out", type=Path, required=True, help="directory for image_tower.pt, config.json, evaluation.json")
+    parser.add_argument(
+        "--out", type=Path, required=True, help="directory for image_tower.pt, config.json, evaluation.json"
+    )
     parser.add_argument("--seed", type=int, default=0, help="training seed (also picks the scene seeds)")
     parser.add_argument("--scenes", type=int, default=210, help="training scenes to generate")
     parser.add_argument("--eval-scenes", type=int, default=10, help="held-out scenes for evaluation")
@@ -39,17 +41,30 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--views", type=int, default=3, help="views kept per object and split (random frames)")
     parser.add_argument("--width", type=int, default=320, help="render width of generated training scenes")
     parser.add_argument("--height", type=int, default=240, help="render height of generated training scenes")
-    parser.add_argument("--threads", type=int, default=2, help="torch threads (the shipped weights: 2; 1 is faster on a loaded machine)")
-    parser.add_argument("--pairs-per-batch", type=int, default=128, help="anchor crops per batch (each with a second view)")
+    parser.add_argument(
+        "--threads", type=int, default=2, help="torch threads (the shipped weights: 2; 1 is faster on a loaded machine)"
+    )
+    parser.add_argument(
+        "--pairs-per-batch", type=int, default=128, help="anchor crops per batch (each with a second view)"
+    )
     parser.add_argument("--input-size", type=int, default=40, help="crop side fed to the image tower")
     parser.add_argument("--workers", type=int, default=2, help="parallel scene generation processes")
     parser.add_argument("--instance-weight", type=float, default=0.3, help="two-view image loss weight")
-    parser.add_argument("--scenes-per-batch", type=int, default=4,
-                        help="anchors of a batch come from this many scenes (0: all scenes at random)")
-    parser.add_argument("--device", default="cpu",
-                        help="torch device of the training steps: cpu (the shipped weights), cuda, cuda:N")
-    parser.add_argument("--repeat-threshold", type=float, default=0.0,
-                        help="category-balanced sampling: categories under this share of the crops repeat (0: off)")
+    parser.add_argument(
+        "--scenes-per-batch",
+        type=int,
+        default=4,
+        help="anchors of a batch come from this many scenes (0: all scenes at random)",
+    )
+    parser.add_argument(
+        "--device", default="cpu", help="torch device of the training steps: cpu (the shipped weights), cuda, cuda:N"
+    )
+    parser.add_argument(
+        "--repeat-threshold",
+        type=float,
+        default=0.0,
+        help="category-balanced sampling: categories under this share of the crops repeat (0: off)",
+    )
 
 
 def _scene_dirs(root: Path) -> list[Path]:
@@ -60,7 +75,6 @@ def _generate_one(spec_dict: dict, root: str) -> str:
     """Process-pool worker (spawned: no GL context is inherited); resumes a partly written scene."""
     from generators.generate import generate_scene
     from generators.spec import SceneSpec
-
     from openreloc_bench import config as cfgmod
 
     return str(generate_scene(cfgmod.from_dict(SceneSpec, spec_dict), root, resume=True, progress=False))
@@ -78,17 +92,30 @@ def _generate(root: Path, prefix: str, seeds: list[int], args: argparse.Namespac
     try:
         from generators.spec import TRAINING_SEED_MIN, VALIDATION_SEED_MIN, SceneSpec
     except ImportError as e:
-        raise ConfigError(f"the scene generator is not available ({e}); pass --data with train/ and eval/ scenes") from None
+        raise ConfigError(
+            f"the scene generator is not available ({e}); pass --data with train/ and eval/ scenes"
+        ) from None
     specs = []
     for i, seed in enumerate(seeds):
         if not TRAINING_SEED_MIN <= seed < VALIDATION_SEED_MIN:
-            raise ConfigError(f"training scene seed {seed} is outside the training range [{TRAINING_SEED_MIN}, "
-                              f"{VALIDATION_SEED_MIN}): lower --seed or --scenes / --eval-scenes")
+            raise ConfigError(
+                f"training scene seed {seed} is outside the training range [{TRAINING_SEED_MIN}, "
+                f"{VALIDATION_SEED_MIN}): lower --seed or --scenes / --eval-scenes"
+            )
         kind = "multi-room" if i % 3 == 2 else "single-room"
-        specs.append(SceneSpec(
-            name=f"{prefix}-{seed}", kind=kind, seed=seed, rooms=3 if kind == "multi-room" else 1,
-            width=args.width, height=args.height, max_mapping_frames=24, n_query=8, n_displaced=0,
-        ))
+        specs.append(
+            SceneSpec(
+                name=f"{prefix}-{seed}",
+                kind=kind,
+                seed=seed,
+                rooms=3 if kind == "multi-room" else 1,
+                width=args.width,
+                height=args.height,
+                max_mapping_frames=24,
+                n_query=8,
+                n_displaced=0,
+            )
+        )
     root.mkdir(parents=True, exist_ok=True)
     with ProcessPoolExecutor(max_workers=max(1, args.workers), mp_context=mp.get_context("spawn")) as pool:
         futures = [pool.submit(_generate_one, cfgmod.to_dict(sp), str(root)) for sp in specs]
@@ -133,22 +160,35 @@ def run(args: argparse.Namespace) -> int:
     sets = []
     for name, dirs, seed in (("train", train_dirs, args.seed), ("eval", eval_dirs, args.seed + 1)):
         # crops are cached beside the scenes, keyed by the scene list and sampling, so re-training is cheap
-        key = hashlib.sha1(json.dumps([[d.name for d in dirs], args.views, seed, list(CROP_SPLITS)]).encode()).hexdigest()[:12]
+        key = hashlib.sha1(
+            json.dumps([[d.name for d in dirs], args.views, seed, list(CROP_SPLITS)]).encode()
+        ).hexdigest()[:12]
         cache = data / f"crops-{name}-{key}.npz"
         if cache.is_file():
             sets.append(CropSet.load(cache))
         else:
-            sets.append(crops_from_scenes(dirs, splits=CROP_SPLITS, max_views_per_object=args.views, rng=np.random.default_rng(seed)))
+            sets.append(
+                crops_from_scenes(
+                    dirs, splits=CROP_SPLITS, max_views_per_object=args.views, rng=np.random.default_rng(seed)
+                )
+            )
             sets[-1].save(cache)
     train, held = sets
     if len(train) < 2 or len(held) < 1:
-        raise ConfigError(f"too few object crops (train {len(train)}, eval {len(held)}): are the scenes' objects visible?")
+        raise ConfigError(
+            f"too few object crops (train {len(train)}, eval {len(held)}): are the scenes' objects visible?"
+        )
     print(f"{len(train)} training crops of {len(set(train.instance_keys))} objects; {len(held)} eval crops", flush=True)
     text = TextTower(MINILM_PACKAGE)
     cfg = TrainConfig(
-        seed=args.seed, epochs=args.epochs, threads=args.threads, instance_weight=args.instance_weight,
-        pairs_per_batch=args.pairs_per_batch, scenes_per_batch=args.scenes_per_batch,
-        repeat_threshold=args.repeat_threshold, device=args.device,
+        seed=args.seed,
+        epochs=args.epochs,
+        threads=args.threads,
+        instance_weight=args.instance_weight,
+        pairs_per_batch=args.pairs_per_batch,
+        scenes_per_batch=args.scenes_per_batch,
+        repeat_threshold=args.repeat_threshold,
+        device=args.device,
     )
     tower_cfg = TowerConfig(input_size=args.input_size)
     tower, info = train_tower(train, text, cfg, tower_cfg, log=lambda m: print(m, flush=True))
@@ -157,24 +197,39 @@ def run(args: argparse.Namespace) -> int:
         "text_model_hub_id": "sentence-transformers/all-MiniLM-L6-v2",
         "train": cfgmod.to_dict(cfg),
         "data": {
-            "train_scenes": [p.name for p in train_dirs], "eval_scenes": [p.name for p in eval_dirs],
-            "train_seeds": train_seeds, "eval_seeds": eval_seeds, "splits": list(CROP_SPLITS),
-            "views_per_object_and_split": args.views, "render_size": [args.width, args.height],
-            "train_crops": len(train), "train_objects": len(set(train.instance_keys)),
+            "train_scenes": [p.name for p in train_dirs],
+            "eval_scenes": [p.name for p in eval_dirs],
+            "train_seeds": train_seeds,
+            "eval_seeds": eval_seeds,
+            "splits": list(CROP_SPLITS),
+            "views_per_object_and_split": args.views,
+            "render_size": [args.width, args.height],
+            "train_crops": len(train),
+            "train_objects": len(set(train.instance_keys)),
             "categories": sorted(set(train.category)),
         },
         "held_out_synonyms": {k: list(v) for k, v in voc.HELD_OUT_SYNONYMS.items()},
         "history": info["history"],
         "train_seconds": info["train_seconds"],
-        "environment": {"torch": torch.__version__, "python": platform.python_version(), "threads": args.threads,
-                        **({"gpu": torch.cuda.get_device_name(device)} if device.type == "cuda" else {})},
+        "environment": {
+            "torch": torch.__version__,
+            "python": platform.python_version(),
+            "threads": args.threads,
+            **({"gpu": torch.cuda.get_device_name(device)} if device.type == "cuda" else {}),
+        },
     }
     save_weights(args.out, tower, tower_cfg, meta)
     enc = OfflineEncoder(args.out)
     result = evaluate(enc.encode_images, enc.encode_texts, held, categories=sorted(set(train.category)))
     io.write_json(args.out / "evaluation.json", result)
-    keys = ("zero_shot_top1", "colour_top1_given_category", "instance_recall1_within_scene", "instance_recall1_pooled",
-            "synonym_zero_shot_top1_mean", "synonym_ap_mean")
+    keys = (
+        "zero_shot_top1",
+        "colour_top1_given_category",
+        "instance_recall1_within_scene",
+        "instance_recall1_pooled",
+        "synonym_zero_shot_top1_mean",
+        "synonym_ap_mean",
+    )
     print("evaluation: " + ", ".join(f"{k} {result[k]:.3f}" for k in keys if k in result))
     print(f"wrote {args.out}/image_tower.pt, config.json, evaluation.json")
     return 0

@@ -49,7 +49,9 @@ def read_scannet(root: Path | str, split: str = "scannet") -> SceneSequence:
         if not geometry.is_rigid(T, tol=1e-3):
             skipped[fid] = "invalid pose (inf/NaN or not rigid)"
             continue
-        color = next((root / "color" / f"{fid}{e}" for e in COLOR_EXTS if (root / "color" / f"{fid}{e}").exists()), None)
+        color = next(
+            (root / "color" / f"{fid}{e}" for e in COLOR_EXTS if (root / "color" / f"{fid}{e}").exists()), None
+        )
         if color is None:
             raise DataError(root / "color" / f"{fid}.jpg", "file not found (pose exists for this frame)")
         depth = root / "depth" / f"{fid}.png"
@@ -83,10 +85,18 @@ class _ResizingSequence(SceneSequence):
         depth = io.read_depth(r.depth_path, self.depth_scale, expect_hw=(self.height, self.width))  # type: ignore[arg-type]
         return Frame(f"{self.split}/{r.frame_id}", r.T_wc, self.K, color, depth, inst)
 
-    def subset(self, indices: list[int] | range) -> "_ResizingSequence":
+    def subset(self, indices: list[int] | range) -> _ResizingSequence:
         base = super().subset(indices)
-        return _ResizingSequence(base.split, base.K, base.width, base.height, base.records, base.depth_scale,
-                                 base.load_instances, base.skipped)
+        return _ResizingSequence(
+            base.split,
+            base.K,
+            base.width,
+            base.height,
+            base.records,
+            base.depth_scale,
+            base.load_instances,
+            base.skipped,
+        )
 
 
 def stride_split(seq: SceneSequence, stride: int = 20, offset: int = 10) -> tuple[SceneSequence, SceneSequence]:

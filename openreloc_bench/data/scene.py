@@ -61,7 +61,7 @@ class ObjectInfo:
     """Mesh-to-world 4x4 transform."""
 
     @classmethod
-    def from_dict(cls, d: dict[str, Any], path: Path) -> "ObjectInfo":
+    def from_dict(cls, d: dict[str, Any], path: Path) -> ObjectInfo:
         try:
             obj = cls(**{k: d[k] for k in cls.__dataclass_fields__ if k in d})
         except TypeError as e:
@@ -133,7 +133,9 @@ def read_split(split_dir: Path, split: str | None = None) -> SceneSequence:
         fid = pose_path.stem
         T = io.read_matrix(pose_path)
         if not geometry.is_rigid(T):
-            raise DataError(pose_path, "pose is not a rigid transform (NaN/inf, non-orthonormal rotation or bad last row)")
+            raise DataError(
+                pose_path, "pose is not a rigid transform (NaN/inf, non-orthonormal rotation or bad last row)"
+            )
         color = split_dir / "color" / f"{fid}.png"
         if not color.exists():
             raise DataError(color, "file not found (pose exists for this frame)")

@@ -6,9 +6,9 @@ A :class:`SceneSequence` keeps only paths and poses in memory and decodes images
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Iterator
 
 import numpy as np
 
@@ -98,11 +98,17 @@ class SceneSequence:
     def has_instances(self) -> bool:
         return bool(self.records) and all(r.instance_path is not None for r in self.records)
 
-    def subset(self, indices: list[int] | range) -> "SceneSequence":
+    def subset(self, indices: list[int] | range) -> SceneSequence:
         """A view on some frames (e.g. the ScanNet stride split), sharing paths, not copies."""
         return SceneSequence(
-            self.split, self.K, self.width, self.height, [self.records[i] for i in indices],
-            self.depth_scale, self.load_instances, dict(self.skipped),
+            self.split,
+            self.K,
+            self.width,
+            self.height,
+            [self.records[i] for i in indices],
+            self.depth_scale,
+            self.load_instances,
+            dict(self.skipped),
         )
 
 

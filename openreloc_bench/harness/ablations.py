@@ -38,10 +38,15 @@ ABLATION_ROWS: tuple[Row, ...] = (
     Row("visibility_retrieval", "#5 w/o DIoU-based Retrieval", {"retrieval": "visibility"}),
     Row("no_filtering", "#6 w/o Invalid Object Filtering", {"no_filtering": True}),
     Row("no_verification", "#7 w/o Geometric Verification (beyond the paper)", {"verification": {"enabled": False}}),
-    Row("no_render_compare", "#8 w/o Render-and-Compare Choice (beyond the paper)", {"consistency": {"enabled": False}}),
+    Row(
+        "no_render_compare", "#8 w/o Render-and-Compare Choice (beyond the paper)", {"consistency": {"enabled": False}}
+    ),
     Row("single_prior", "#9 Single Coarse Prior, DIoU (the paper's coarse stage)", _SINGLE_PRIOR),
-    Row("single_prior_visibility", "#10 Single Coarse Prior, w/o DIoU-based Retrieval (#5 on #9)",
-        {**_SINGLE_PRIOR, "retrieval": "visibility"}),
+    Row(
+        "single_prior_visibility",
+        "#10 Single Coarse Prior, w/o DIoU-based Retrieval (#5 on #9)",
+        {**_SINGLE_PRIOR, "retrieval": "visibility"},
+    ),
 )
 FULL_ROW = Row("full", "Ours Full")
 

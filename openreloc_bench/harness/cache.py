@@ -40,8 +40,13 @@ def git_commit() -> str:
         head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=REPO_ROOT, capture_output=True, text=True, timeout=10)
         if head.returncode != 0:
             return "unknown"
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=REPO_ROOT,
-                               capture_output=True, text=True, timeout=10).stdout.strip()
+        dirty = subprocess.run(
+            ["git", "status", "--porcelain", "--untracked-files=no"],
+            cwd=REPO_ROOT,
+            capture_output=True,
+            text=True,
+            timeout=10,
+        ).stdout.strip()
         return head.stdout.strip() + ("-dirty" if dirty else "")
     except (OSError, subprocess.SubprocessError):
         return "unknown"
@@ -72,7 +77,13 @@ def build_map_cached(method: Any, mapping: Any, map_dir: Path, spec_hash: str, e
     t0 = time.perf_counter()
     method.build_map(mapping, map_dir)
     seconds = time.perf_counter() - t0
-    rec = {**extra, "spec_hash": spec_hash, "mapping_time_s": seconds, "map_bytes": dir_bytes(map_dir),
-           "n_mapping_frames": len(mapping), "git_commit": git_commit()}
+    rec = {
+        **extra,
+        "spec_hash": spec_hash,
+        "mapping_time_s": seconds,
+        "map_bytes": dir_bytes(map_dir),
+        "n_mapping_frames": len(mapping),
+        "git_commit": git_commit(),
+    }
     io.write_json(map_marker(map_dir), rec)
     return rec

@@ -13,8 +13,9 @@ import multiprocessing as mp
 import os
 import threading
 import time
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
-from typing import Any, Callable, Iterator, Protocol, Sequence, TypeVar
+from typing import Any, Protocol, TypeVar
 
 from openreloc_bench.errors import ConfigError
 
@@ -77,8 +78,12 @@ class LocalExecutor:
     def map(self, fn: Callable[[J], Any], jobs: Sequence[J]) -> Iterator[tuple[J, Any]]:
         if not jobs:
             return
-        with ProcessPoolExecutor(max_workers=min(self.workers, len(jobs)), mp_context=mp_context(),
-                                 initializer=exit_with, initargs=(os.getpid(),)) as pool:
+        with ProcessPoolExecutor(
+            max_workers=min(self.workers, len(jobs)),
+            mp_context=mp_context(),
+            initializer=exit_with,
+            initargs=(os.getpid(),),
+        ) as pool:
             futures = {pool.submit(fn, job): job for job in jobs}
             for fut in as_completed(futures):
                 yield futures[fut], fut.result()

@@ -29,8 +29,17 @@ BOARD_COLUMNS = {
     "median_re_deg": "Median RE [°]", "map_mb": "Map [MB]", "mapping_time_s": "Mapping [s]",
     "latency_median_s": "Latency med [ms]", "latency_p90_s": "Latency p90 [ms]", "git_commit": "Commit",
 }  # fmt: skip
-FORMATS = {"recall": "{:.1f}", "mte": "{:.3f}", "mre": "{:.2f}", "median_te": "{:.3f}", "median_re": "{:.2f}",
-           "map_mb": "{:.2f}", "mapping": "{:.1f}", "latency": "{:.1f}", "n_": "{:.0f}"}
+FORMATS = {
+    "recall": "{:.1f}",
+    "mte": "{:.3f}",
+    "mre": "{:.2f}",
+    "median_te": "{:.3f}",
+    "median_re": "{:.2f}",
+    "map_mb": "{:.2f}",
+    "mapping": "{:.1f}",
+    "latency": "{:.1f}",
+    "n_": "{:.0f}",
+}
 
 
 def load_queries(results: list[Path]) -> pd.DataFrame:
@@ -75,14 +84,23 @@ def board(suite: pd.DataFrame) -> pd.DataFrame:
 
 def to_markdown(b: pd.DataFrame, scenes: pd.DataFrame) -> str:
     head = [BOARD_COLUMNS[c] for c in b.columns]
-    lines = ["# openreloc-bench leaderboard", "", "Recall = share of all queries (failures count); "
-             "MTE/MRE = mean error of the queries within the threshold.", "",
-             "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    lines = [
+        "# openreloc-bench leaderboard",
+        "",
+        "Recall = share of all queries (failures count); MTE/MRE = mean error of the queries within the threshold.",
+        "",
+        "| " + " | ".join(head) + " |",
+        "|" + "---|" * len(head),
+    ]
     lines += ["| " + " | ".join(_fmt(c, r[c]) for c in b.columns) + " |" for _, r in b.iterrows()]
     for (track, split), t in scenes.groupby(["track", "split"]):
         rows = [(m, {"method": m}) for m in b[(b.track == track) & (b.split == split)]["method"]]
-        lines += ["", f"## Per scene: {split} ({track} track), each cell @50cm / @25cm", "",
-                  paper_table(t, rows, sorted(t["scene"].unique())).rstrip()]
+        lines += [
+            "",
+            f"## Per scene: {split} ({track} track), each cell @50cm / @25cm",
+            "",
+            paper_table(t, rows, sorted(t["scene"].unique())).rstrip(),
+        ]
     return "\n".join(lines) + "\n"
 
 
@@ -101,8 +119,9 @@ document.querySelectorAll('table.sortable th').forEach((th, i) => th.addEventLis
 
 def to_html(b: pd.DataFrame, plots: list[str]) -> str:
     head = "".join(f"<th>{html.escape(BOARD_COLUMNS[c])}</th>" for c in b.columns)
-    rows = "".join("<tr>" + "".join(f"<td>{html.escape(_fmt(c, r[c]))}</td>" for c in b.columns) + "</tr>"
-                   for _, r in b.iterrows())
+    rows = "".join(
+        "<tr>" + "".join(f"<td>{html.escape(_fmt(c, r[c]))}</td>" for c in b.columns) + "</tr>" for _, r in b.iterrows()
+    )
     imgs = "".join(f'<figure><img src="{html.escape(p)}" alt="{html.escape(p)}"></figure>' for p in plots)
     return f"""<!doctype html>
 <html lang="en"><head><meta charset="utf-8"><title>openreloc-bench leaderboard</title>
@@ -197,8 +216,11 @@ def write_leaderboard(results: list[Path], out: Path) -> list[Path]:
     out.mkdir(parents=True, exist_ok=True)
     plots_dir = out / "plots"
     plots_dir.mkdir(exist_ok=True)
-    plots = [plots_dir / "cumulative_translation.png", plots_dir / "cumulative_rotation.png",
-             plots_dir / "recall_per_scene.png"]
+    plots = [
+        plots_dir / "cumulative_translation.png",
+        plots_dir / "cumulative_rotation.png",
+        plots_dir / "recall_per_scene.png",
+    ]
     plot_cumulative(q, "t_err_m", 1.0, "translation error [m]", plots[0])
     plot_cumulative(q, "r_err_deg", 20.0, "rotation error [°]", plots[1])
     plot_scene_recall(scenes, plots[2])
@@ -209,4 +231,3 @@ def write_leaderboard(results: list[Path], out: Path) -> list[Path]:
     io.atomic_write_text(out / "leaderboard.md", to_markdown(b, scenes))
     io.atomic_write_text(out / "index.html", to_html(b, [str(p.relative_to(out)) for p in plots]))
     return [out / "leaderboard.md", out / "leaderboard.csv", out / "index.html", *plots]
-

@@ -40,7 +40,15 @@ from openreloc_bench.errors import ConfigError, DataError
 from openreloc_bench.harness import cache
 from openreloc_bench.harness.executors import make_executor, mp_context
 from openreloc_bench.harness.score import Outcome, score_split
-from openreloc_bench.methods import Failure, PoseEstimate, QueryFrame, Relocalizer, create_method, map_config, method_config
+from openreloc_bench.methods import (
+    Failure,
+    PoseEstimate,
+    QueryFrame,
+    Relocalizer,
+    create_method,
+    map_config,
+    method_config,
+)
 
 log = logging.getLogger(__name__)
 
@@ -174,7 +182,9 @@ class QueryServer:
             _, load_s = self._conn.recv()
         except EOFError:
             self._proc.join()
-            raise RuntimeError(f"loading the map failed in the query worker (exit code {self._proc.exitcode})") from None
+            raise RuntimeError(
+                f"loading the map failed in the query worker (exit code {self._proc.exitcode})"
+            ) from None
         self.load_s += load_s
 
     def ask(self, i: int, name: str) -> Outcome:
@@ -254,8 +264,10 @@ def _run_query_job(job: QueryJob) -> dict[str, Any]:
     table = score_split(seq, outcomes)
     poses = {n: o.T_wc for n, o in outcomes.items() if o.T_wc is not None}
     prov = job.provenance
-    comments = [f"method {job.run.label} ({prov['config_hash']}), track {job.track}, scene {prov['scene']}, "
-                f"spec {prov['spec_hash']}, commit {prov['git_commit']}"]
+    comments = [
+        f"method {job.run.label} ({prov['config_hash']}), track {job.track}, scene {prov['scene']}, "
+        f"spec {prov['spec_hash']}, commit {prov['git_commit']}"
+    ]
     job.out_dir.mkdir(parents=True, exist_ok=True)
     write_results(job.out_dir / f"{job.split}.txt", poses, comments)
     write_tum(job.out_dir / f"{job.split}.tum", poses)
@@ -359,14 +371,24 @@ def plan(cfg: EvalConfig) -> tuple[list[MapJob], list[QueryJob]]:
         for name, scene in scenes.items():
             spec = scene_spec_hash(scene)
             map_dir = cfg.out / "maps" / run.method / map_hash / name
-            prov = {"method": run.label, "variant": run.variant or run.label, "seed": run.seed,
-                    "registry_name": run.method, "method_config": mcfg, "config_hash": chash,
-                    "map_hash": map_hash, "scene": name, "spec_hash": spec, "git_commit": commit}
+            prov = {
+                "method": run.label,
+                "variant": run.variant or run.label,
+                "seed": run.seed,
+                "registry_name": run.method,
+                "method_config": mcfg,
+                "config_hash": chash,
+                "map_hash": map_hash,
+                "scene": name,
+                "spec_hash": spec,
+                "git_commit": commit,
+            }
             map_jobs.append(MapJob(run, scene.root, map_dir, spec, prov, cfg.plugins))
             for split in cfg.splits:
                 out_dir = cfg.out / "runs" / run.label / cfg.track / name
-                query_jobs.append(QueryJob(run, scene.root, split, cfg.track, map_dir, out_dir,
-                                           cfg.timeout_s, prov, cfg.plugins))
+                query_jobs.append(
+                    QueryJob(run, scene.root, split, cfg.track, map_dir, out_dir, cfg.timeout_s, prov, cfg.plugins)
+                )
     return map_jobs, query_jobs
 
 
@@ -388,8 +410,10 @@ def _seeded_runs(runs: list[MethodRun], seeds: list[int]) -> list[tuple[MethodRu
             out.append((run, method))
             continue
         if "seed" in run.overrides:
-            raise ConfigError(f"method '{run.label}': its config sets seed {run.overrides['seed']} and seeds "
-                              f"{seeds} are given too; use one of them")
+            raise ConfigError(
+                f"method '{run.label}': its config sets seed {run.overrides['seed']} and seeds "
+                f"{seeds} are given too; use one of them"
+            )
         out += [(r, _create(r)) for r in map(run.with_seed, seeds)]
     return out
 
@@ -409,7 +433,9 @@ def evaluate(cfg: EvalConfig) -> EvalReport:
     report.maps_cached = len(unique) - len(todo_maps)
     executor = make_executor(cfg.executor, cfg.workers, cfg.ray_address)
     failed_maps: dict[Path, str] = {}
-    for job, rec in tqdm(executor.map(run_map_job, todo_maps), total=len(todo_maps), desc="maps", disable=not todo_maps):
+    for job, rec in tqdm(
+        executor.map(run_map_job, todo_maps), total=len(todo_maps), desc="maps", disable=not todo_maps
+    ):
         if "error" in rec:
             failed_maps[job.map_dir] = rec["error"]
             report.errors.append(f"map {job.run.label}/{job.scene_dir.name}: {rec['error']}")
@@ -450,7 +476,14 @@ def load_run_queries(out: Path) -> pd.DataFrame:
 
 def load_map_records(out: Path) -> pd.DataFrame:
     """Mapping time and map size of every cached map, one row per (map config hash, scene)."""
-    rows = [{"map_hash": p.parent.name, "scene": p.name[: -len(".done.json")],
-             "map_mb": r["map_bytes"] / 1e6, "mapping_time_s": r["mapping_time_s"]}
-            for p in sorted((out / "maps").glob("*/*/*.done.json")) for r in [io.read_json(p)]]
+    rows = [
+        {
+            "map_hash": p.parent.name,
+            "scene": p.name[: -len(".done.json")],
+            "map_mb": r["map_bytes"] / 1e6,
+            "mapping_time_s": r["mapping_time_s"],
+        }
+        for p in sorted((out / "maps").glob("*/*/*.done.json"))
+        for r in [io.read_json(p)]
+    ]
     return pd.DataFrame(rows, columns=["map_hash", "scene", "map_mb", "mapping_time_s"])

@@ -90,8 +90,11 @@ def submission_outcomes(submission: Path, scene: str, seq: SceneSequence) -> dic
         return None
     unknown = sorted(set(found) - set(seq.names))
     if unknown:
-        raise DataError(path, f"{len(unknown)} name(s) are not queries of scene '{scene}', e.g. '{unknown[0]}' "
-                        f"(expected '<split>/<frame id>' like '{seq.names[0]}')")
+        raise DataError(
+            path,
+            f"{len(unknown)} name(s) are not queries of scene '{scene}', e.g. '{unknown[0]}' "
+            f"(expected '<split>/<frame id>' like '{seq.names[0]}')",
+        )
     return found
 
 
@@ -104,8 +107,9 @@ def submission_scenes(submission: Path, data: Path) -> list[str]:
     return found
 
 
-def score_submission(submission: Path, data: Path, scenes: list[str], splits: list[str], method: str,
-                     track: str) -> pd.DataFrame:
+def score_submission(
+    submission: Path, data: Path, scenes: list[str], splits: list[str], method: str, track: str
+) -> pd.DataFrame:
     """Per-query rows (with the runner's provenance columns) for pose files produced elsewhere.
 
     A scene or split without a file counts every query as failed ("missing"), as does a query
@@ -124,8 +128,16 @@ def score_submission(submission: Path, data: Path, scenes: list[str], splits: li
             seq = scene.sequence(split)
             outcomes = submission_outcomes(submission, name, seq) or {}
             df = score_split(seq, outcomes)
-            meta = {"method": method, "track": track, "scene": name, "split": split, "config_hash": "submission",
-                    "map_hash": "submission", "spec_hash": scene_spec_hash(scene), "git_commit": git_commit()}
+            meta = {
+                "method": method,
+                "track": track,
+                "scene": name,
+                "split": split,
+                "config_hash": "submission",
+                "map_hash": "submission",
+                "spec_hash": scene_spec_hash(scene),
+                "git_commit": git_commit(),
+            }
             for i, (k, v) in enumerate(meta.items()):
                 df.insert(i, k, v)
             frames.append(df)

@@ -82,8 +82,10 @@ def seed_table(queries: pd.DataFrame, maps: pd.DataFrame) -> pd.DataFrame:
         return pd.DataFrame(columns=cols)
     per_seed = metric_table(seeded.astype({"seed": int}), [*SEED_KEYS, "seed"], maps)
     agg = per_seed.groupby(SEED_KEYS, sort=True).agg(
-        n_seeds=("seed", "nunique"), n_queries=("n_queries", "first"),
-        **{f"{m}_{s}": (m, s) for m in SEED_METRICS for s in stats})
+        n_seeds=("seed", "nunique"),
+        n_queries=("n_queries", "first"),
+        **{f"{m}_{s}": (m, s) for m in SEED_METRICS for s in stats},
+    )
     return agg.reset_index()[cols]
 
 
@@ -91,8 +93,10 @@ def compact_seeds(seeds: pd.DataFrame) -> str:
     """Mean ± std [min, max] over seeds of the recalls, one line per variant."""
     lines = []
     for _, r in seeds.iterrows():
-        cells = [f"{label} {r[f'{m}_mean']:.1f} ± {r[f'{m}_std']:.1f} [{r[f'{m}_min']:.1f}, {r[f'{m}_max']:.1f}]"
-                 for m, label in (("recall_50cm", "R@50cm%"), ("recall_25cm", "R@25cm%"))]
+        cells = [
+            f"{label} {r[f'{m}_mean']:.1f} ± {r[f'{m}_std']:.1f} [{r[f'{m}_min']:.1f}, {r[f'{m}_max']:.1f}]"
+            for m, label in (("recall_50cm", "R@50cm%"), ("recall_25cm", "R@25cm%"))
+        ]
         lines.append(f"{r['variant']} {r['track']} {r['split']}, {r['n_seeds']} seeds: " + "  ".join(cells))
     return "\n".join(lines)
 
@@ -108,7 +112,9 @@ def build_tables(queries: pd.DataFrame, maps: pd.DataFrame) -> tuple[pd.DataFram
     return metric_table(queries, SCENE_KEYS, maps), metric_table(queries, SUITE_KEYS, maps)
 
 
-def write_tables(tables_dir: Path, queries: pd.DataFrame, maps: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame, pd.DataFrame]:
+def write_tables(
+    tables_dir: Path, queries: pd.DataFrame, maps: pd.DataFrame
+) -> tuple[pd.DataFrame, pd.DataFrame, pd.DataFrame]:
     """queries / scenes / suite tables (CSV + JSON), the seeds table where variants ran over seeds and,
     where the runs exist, the paper's tables (markdown, seeds pooled); returns scenes, suite, seeds."""
     scenes, suite = build_tables(queries, maps)
@@ -136,7 +142,11 @@ def compact(suite: pd.DataFrame) -> str:
 # The paper's layout: rows = settings, "@50cm / @25cm" cells, scenes as columns
 # --------------------------------------------------------------------------------------------
 
-_PAPER_METRICS = (("Recall[%]", "recall_{}", "{:.0f}"), ("MTE[m]", "mte_{}_m", "{:.2f}"), ("MRE[°]", "mre_{}_deg", "{:.1f}"))
+_PAPER_METRICS = (
+    ("Recall[%]", "recall_{}", "{:.0f}"),
+    ("MTE[m]", "mte_{}_m", "{:.2f}"),
+    ("MRE[°]", "mre_{}_deg", "{:.1f}"),
+)
 
 
 def _cell(row: pd.Series | None, col: str, fmt: str) -> str:
@@ -169,10 +179,15 @@ def paper_tables(scenes: pd.DataFrame) -> dict[str, str]:
     for track, t in scenes.groupby("track"):
         names = sorted(t["scene"].unique())
         labels = set(t["method"])
-        abl = [(r.title, {"method": ablation_label(r), "split": "query"}) for r in (*ABLATION_ROWS, FULL_ROW)
-               if ablation_label(r) in labels]
+        abl = [
+            (r.title, {"method": ablation_label(r), "split": "query"})
+            for r in (*ABLATION_ROWS, FULL_ROW)
+            if ablation_label(r) in labels
+        ]
         if len(abl) > 1:
-            out[f"ablations_{track}"] = f"Ablations ({track} track), each cell @50cm / @25cm\n\n" + paper_table(t, abl, names)
+            out[f"ablations_{track}"] = f"Ablations ({track} track), each cell @50cm / @25cm\n\n" + paper_table(
+                t, abl, names
+            )
         for method, m in t.groupby("method"):
             rob = [(r.title, {"split": r.key}) for r in ROBUSTNESS_ROWS if r.key in set(m["split"])]
             if len(rob) > 1:

@@ -112,8 +112,8 @@ def query_neighbours(boxes: np.ndarray) -> list[list[int]]:
     centres = (boxes[:, :2] + boxes[:, 2:]) / 2
     dist = np.linalg.norm(centres[:, None] - centres[None], axis=-1)
     np.fill_diagonal(dist, np.inf)
-    ix = (np.minimum(boxes[:, None, 2], boxes[None, :, 2]) > np.maximum(boxes[:, None, 0], boxes[None, :, 0]))
-    iy = (np.minimum(boxes[:, None, 3], boxes[None, :, 3]) > np.maximum(boxes[:, None, 1], boxes[None, :, 1]))
+    ix = np.minimum(boxes[:, None, 2], boxes[None, :, 2]) > np.maximum(boxes[:, None, 0], boxes[None, :, 0])
+    iy = np.minimum(boxes[:, None, 3], boxes[None, :, 3]) > np.maximum(boxes[:, None, 1], boxes[None, :, 1])
     inter = ix & iy
     np.fill_diagonal(inter, False)
     return [sorted(set(np.flatnonzero(inter[i]).tolist()) | {int(np.argmin(dist[i]))}) for i in range(n)]
@@ -174,10 +174,16 @@ def associate(
             if len(u) == 1 or graph is None:
                 ranked, how = u, "visual"
             else:
-                qfeats = np.stack([objects[j].visual for j in neighbours[qi]]) if neighbours[qi] else np.zeros((0, descriptors.shape[1]))
+                qfeats = (
+                    np.stack([objects[j].visual for j in neighbours[qi]])
+                    if neighbours[qi]
+                    else np.zeros((0, descriptors.shape[1]))
+                )
                 scores = {
                     c: vis_sim[qi, row_of[c]]
-                    + subgraph_similarity(qfeats, descriptors[[row_of[n] for n in landmark_neighbours(graph, c, cfg.hops, allowed)]])
+                    + subgraph_similarity(
+                        qfeats, descriptors[[row_of[n] for n in landmark_neighbours(graph, c, cfg.hops, allowed)]]
+                    )
                     for c in u
                 }
                 ranked, how = sorted(u, key=lambda c: -scores[c]), "graph"
@@ -207,21 +213,34 @@ def associate(
         if choice != m.landmark:
             obj = objects[m.query]
             m = Match(
-                query=m.query, landmark=choice, visual_sim=float(vis_sim[m.query, row_of[choice]]),
+                query=m.query,
+                landmark=choice,
+                visual_sim=float(vis_sim[m.query, row_of[choice]]),
                 text_sim=None if obj.text is None else float(descriptors[row_of[choice]] @ obj.text),
-                how="fallback", candidates=m.candidates,
+                how="fallback",
+                candidates=m.candidates,
             )
         taken.add(choice)
         out.append(m)
     return sorted(out, key=lambda m: m.query)
 
 
-def oracle_matches(objects: list[QueryObject], landmark_ids: list[int],
-                   invalid: frozenset[int] | set[int] = frozenset()) -> list[Match]:
+def oracle_matches(
+    objects: list[QueryObject], landmark_ids: list[int], invalid: frozenset[int] | set[int] = frozenset()
+) -> list[Match]:
     """DIAGNOSTIC: the ground-truth association (``AssociationConfig.oracle``): each object whose
     dataset instance id is a (valid) landmark id is matched to it. Objects without an instance id,
     or whose instance is not in the map, stay unmatched."""
     known = set(landmark_ids) - set(invalid)
-    return [Match(query=qi, landmark=int(o.instance_id), visual_sim=float("nan"), text_sim=None, how="oracle",
-                  candidates=[int(o.instance_id)])
-            for qi, o in enumerate(objects) if o.instance_id is not None and int(o.instance_id) in known]
+    return [
+        Match(
+            query=qi,
+            landmark=int(o.instance_id),
+            visual_sim=float("nan"),
+            text_sim=None,
+            how="oracle",
+            candidates=[int(o.instance_id)],
+        )
+        for qi, o in enumerate(objects)
+        if o.instance_id is not None and int(o.instance_id) in known
+    ]

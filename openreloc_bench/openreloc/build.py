@@ -14,10 +14,11 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Iterator, Literal
+from typing import Literal
 
 import numpy as np
 import open3d as o3d
@@ -88,8 +89,14 @@ def build_object_map(
         rec = mapping.fuse_tsdf(mapping_seq, config.fusion, progress)
     n = len(rec.points)
     with timer("observation"):
-        obs = mapping.observe(mapping_seq, rec.points, rec.usable, config.observation,
-                              segmenter if source == "segmenter" else None, progress)
+        obs = mapping.observe(
+            mapping_seq,
+            rec.points,
+            rec.usable,
+            config.observation,
+            segmenter if source == "segmenter" else None,
+            progress,
+        )
     with timer("instances"):
         if source == "masks":
             labels = mapping.lift_by_voting(n, obs, config.instances.voting)
@@ -98,7 +105,9 @@ def build_object_map(
         sets = mapping.instance_sets(labels, config.instances.min_points)
         labels = np.where(np.isin(labels, list(sets)), labels, 0)
     with timer("ground_truth"):
-        gt_labels, reference = _reference_labels(mapping_seq, rec.points, obs, labels if source == "masks" else None, config)
+        gt_labels, reference = _reference_labels(
+            mapping_seq, rec.points, obs, labels if source == "masks" else None, config
+        )
         quality = None
         if gt_labels is not None:
             quality = mapping.instance_quality(sets, mapping.instance_sets(gt_labels, config.instances.min_points))
@@ -118,9 +127,15 @@ def build_object_map(
         pts = rec.points[sets[i]]
         kept = _downsample(pts, config.landmark_voxel, config.max_landmark_points, rng)
         landmarks[i] = Landmark(
-            id=i, points=kept, box_min=pts.min(0).astype(np.float64), box_max=pts.max(0).astype(np.float64),
-            center=pts.mean(0).astype(np.float64), descriptor=desc[i], valid=i not in invalid,
-            category=categories.get(i), n_views=int((sightings.landmark == i).sum()),
+            id=i,
+            points=kept,
+            box_min=pts.min(0).astype(np.float64),
+            box_max=pts.max(0).astype(np.float64),
+            center=pts.mean(0).astype(np.float64),
+            descriptor=desc[i],
+            valid=i not in invalid,
+            category=categories.get(i),
+            n_views=int((sightings.landmark == i).sum()),
         )
     with timer("graph"):
         graph = build_scene_graph(landmarks, config.graph)
@@ -142,8 +157,17 @@ def build_object_map(
     }
     encoder_info = encoder.config()
     encoder_info["fingerprint"] = encoder.weights_fingerprint(**encoder_info)  # load_map checks it
-    return ObjectMap(landmarks, rfs, graph, np.asarray(mapping_seq.K, dtype=np.float64), mapping_seq.width,
-                     mapping_seq.height, encoder_info, cfg_mod.to_dict(config), stats)
+    return ObjectMap(
+        landmarks,
+        rfs,
+        graph,
+        np.asarray(mapping_seq.K, dtype=np.float64),
+        mapping_seq.width,
+        mapping_seq.height,
+        encoder_info,
+        cfg_mod.to_dict(config),
+        stats,
+    )
 
 
 def _downsample(points: np.ndarray, voxel: float, cap: int, rng: np.random.Generator) -> np.ndarray:
@@ -170,7 +194,9 @@ def _reference_labels(
     if objects:
         return mapping.box_point_labels(points, objects, config.instances.gt_box_margin), "object boxes"
     if all(o.gt_ids is not None for o in obs):
-        return (voted if voted is not None else mapping.lift_by_voting(len(points), obs, config.instances.voting)), "mask voting"
+        return (
+            voted if voted is not None else mapping.lift_by_voting(len(points), obs, config.instances.voting)
+        ), "mask voting"
     return None, None
 
 

@@ -68,12 +68,17 @@ class LabelRenderer:
 
     def __init__(self, points: list[np.ndarray], width: int, height: int, cfg: ConsistencyConfig, seed: int = 0):
         rng = np.random.default_rng(seed)
-        keep = [p if len(p) <= cfg.points_per_landmark else p[rng.choice(len(p), cfg.points_per_landmark, replace=False)]
-                for p in points]
-        self.points = np.concatenate([np.asarray(p, np.float64).reshape(-1, 3) for p in keep]) if keep else np.zeros((0, 3))
+        keep = [
+            p if len(p) <= cfg.points_per_landmark else p[rng.choice(len(p), cfg.points_per_landmark, replace=False)]
+            for p in points
+        ]
+        self.points = (
+            np.concatenate([np.asarray(p, np.float64).reshape(-1, 3) for p in keep]) if keep else np.zeros((0, 3))
+        )
         self.rows = np.concatenate([np.full(len(p), r) for r, p in enumerate(keep)]) if keep else np.zeros(0, int)
-        self.radius = (np.concatenate([np.full(len(p), cfg.splat * _spacing(p)) for p in keep]) if keep
-                       else np.zeros(0))  # metres: half-width of each point's square
+        self.radius = (
+            np.concatenate([np.full(len(p), cfg.splat * _spacing(p)) for p in keep]) if keep else np.zeros(0)
+        )  # metres: half-width of each point's square
         self.cfg = cfg
         s = cfg.stride
         self.grid = (height // s, width // s)

@@ -37,8 +37,12 @@ def pad_box(box: np.ndarray, padding: float, width: int, height: int) -> tuple[i
     """Integer crop window [x0, y0, x1, y1) of a box grown by ``padding`` and clipped to the image."""
     x0, y0, x1, y1 = (float(v) for v in box)
     px, py = padding * (x1 - x0), padding * (y1 - y0)
-    return (max(0, int(np.floor(x0 - px))), max(0, int(np.floor(y0 - py))),
-            min(width, int(np.ceil(x1 + px))), min(height, int(np.ceil(y1 + py))))
+    return (
+        max(0, int(np.floor(x0 - px))),
+        max(0, int(np.floor(y0 - py))),
+        min(width, int(np.ceil(x1 + px))),
+        min(height, int(np.ceil(y1 + py))),
+    )
 
 
 def top_views(sightings: Sightings, landmark: int, cfg: DescriptorConfig) -> np.ndarray:
@@ -52,8 +56,12 @@ def top_views(sightings: Sightings, landmark: int, cfg: DescriptorConfig) -> np.
 
 
 def compute_descriptors(
-    seq: SceneSequence, sightings: Sightings, landmarks: list[int], encoder: ImageTextEncoder,
-    cfg: DescriptorConfig, progress: bool = True,
+    seq: SceneSequence,
+    sightings: Sightings,
+    landmarks: list[int],
+    encoder: ImageTextEncoder,
+    cfg: DescriptorConfig,
+    progress: bool = True,
 ) -> tuple[dict[int, np.ndarray], dict[int, int]]:
     """(landmark -> unit descriptor, landmark -> number of crops used). Each frame is read once."""
     jobs: dict[int, list[tuple[int, np.ndarray]]] = defaultdict(list)  # frame -> [(landmark, box)]

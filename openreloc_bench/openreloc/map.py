@@ -131,7 +131,9 @@ class ObjectMap:
         rfs = self.reference_frames
         rf_counts = np.array([len(rf.boxes) for rf in rfs], dtype=np.int64)
         rf_ids = [np.array(sorted(rf.boxes), dtype=np.int32) for rf in rfs]
-        edges = sorted((min(a, b), max(a, b), EDGE_KINDS.index(d.get("kind", "knn"))) for a, b, d in self.graph.edges(data=True))
+        edges = sorted(
+            (min(a, b), max(a, b), EDGE_KINDS.index(d.get("kind", "knn"))) for a, b, d in self.graph.edges(data=True)
+        )
         arrays = {
             "landmark_ids": np.array(ids, dtype=np.int32),
             "point_counts": counts,
@@ -145,9 +147,9 @@ class ObjectMap:
             "rf_T_wc": np.array([rf.T_wc for rf in rfs], dtype=np.float64).reshape(-1, 4, 4),
             "rf_counts": rf_counts,
             "rf_ids": np.concatenate(rf_ids) if rf_ids else np.zeros(0, np.int32),
-            "rf_boxes": np.array(
-                [rf.boxes[i] for rf, ri in zip(rfs, rf_ids) for i in ri], dtype=np.float32
-            ).reshape(-1, 4),
+            "rf_boxes": np.array([rf.boxes[i] for rf, ri in zip(rfs, rf_ids) for i in ri], dtype=np.float32).reshape(
+                -1, 4
+            ),
             "rf_visibility": np.array(
                 [rf.visibility.get(int(i), 0.0) for rf, ri in zip(rfs, rf_ids) for i in ri], dtype=np.float16
             ),
@@ -183,7 +185,7 @@ class ObjectMap:
     # ---------------------------------------------------------------------------------------- load
 
     @classmethod
-    def load(cls, map_dir: Path | str) -> "ObjectMap":
+    def load(cls, map_dir: Path | str) -> ObjectMap:
         """Read a map written by :meth:`save`; DataError naming the file on any inconsistency."""
         map_dir = Path(map_dir)
         manifest_path = map_dir / MANIFEST
@@ -208,7 +210,7 @@ class ObjectMap:
             raise DataError(map_dir / ARRAYS, f"malformed map arrays ({type(e).__name__}: {e})") from None
 
     @classmethod
-    def _from_arrays(cls, a: dict[str, np.ndarray], meta: dict[str, Any]) -> "ObjectMap":
+    def _from_arrays(cls, a: dict[str, np.ndarray], meta: dict[str, Any]) -> ObjectMap:
         ids = [int(i) for i in a["landmark_ids"]]
         offsets = np.concatenate([[0], np.cumsum(a["point_counts"])])
         landmarks = {}

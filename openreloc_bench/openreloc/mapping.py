@@ -199,8 +199,13 @@ def fuse_tsdf(seq: SceneSequence, cfg: FusionConfig, progress: bool = True) -> R
     """
     device = o3c.Device("CPU:0")
     vbg = o3d.t.geometry.VoxelBlockGrid(
-        attr_names=("tsdf", "weight"), attr_dtypes=(o3c.float32, o3c.float32), attr_channels=((1), (1)),
-        voxel_size=cfg.voxel_size, block_resolution=cfg.block_resolution, block_count=cfg.block_count, device=device,
+        attr_names=("tsdf", "weight"),
+        attr_dtypes=(o3c.float32, o3c.float32),
+        attr_channels=((1), (1)),
+        voxel_size=cfg.voxel_size,
+        block_resolution=cfg.block_resolution,
+        block_count=cfg.block_count,
+        device=device,
     )
     stride = max(1, -(-seq.width // cfg.max_fusion_width)) if cfg.max_fusion_width > 0 else 1
     K_np = np.asarray(seq.K, dtype=np.float64).copy()
@@ -219,7 +224,9 @@ def fuse_tsdf(seq: SceneSequence, cfg: FusionConfig, progress: bool = True) -> R
         if ok.mean() < cfg.min_valid_depth:
             skipped[name] = f"only {ok.mean():.1%} valid depth pixels"
             continue
-        d = o3d.t.geometry.Image(o3c.Tensor(np.ascontiguousarray(np.where(ok, depth, 0)[::stride, ::stride], dtype=np.float32)))
+        d = o3d.t.geometry.Image(
+            o3c.Tensor(np.ascontiguousarray(np.where(ok, depth, 0)[::stride, ::stride], dtype=np.float32))
+        )
         ext = o3c.Tensor(geometry.invert(T))
         blocks = vbg.compute_unique_block_coordinates(d, K, ext, 1.0, cfg.depth_max, cfg.sdf_trunc_voxels)
         vbg.integrate(blocks, d, K, ext, 1.0, cfg.depth_max, cfg.sdf_trunc_voxels)
@@ -256,7 +263,9 @@ def observe(
         assert depth is not None  # usable frames have depth
         T = _pose(seq, int(i))
         valid_depth = depth[np.isfinite(depth) & (depth > 0)]
-        far = float(valid_depth.max()) * (1 + cfg.depth_tolerance_rel) + cfg.depth_tolerance if len(valid_depth) else 0.0
+        far = (
+            float(valid_depth.max()) * (1 + cfg.depth_tolerance_rel) + cfg.depth_tolerance if len(valid_depth) else 0.0
+        )
         cand = cells.in_frustum(seq.K, T, seq.width, seq.height, far)
         uv, z = geometry.project(seq.K, T, points[cand])
         px = np.round(uv).astype(np.int64)
@@ -268,7 +277,9 @@ def observe(
         idx, pix = cand[sub], px[sub]
         inst = read_instance(seq, int(i))
         fo = FrameObservation(
-            index=int(i), point_idx=idx.astype(np.int32), uv=pix.astype(np.int16),
+            index=int(i),
+            point_idx=idx.astype(np.int32),
+            uv=pix.astype(np.int16),
             gt_ids=None if inst is None else inst[pix[:, 1], pix[:, 0]].astype(np.int32),
         )
         if segmenter is not None:
@@ -351,8 +362,11 @@ def lift_by_clustering(points: np.ndarray, obs: list[FrameObservation], cfg: Clu
         return np.zeros(n_points, np.int64)
     mask_frame = np.array(frame_of)
     M = _incidence(np.concatenate(rows), np.concatenate(cols), (len(frame_of), n_points))
-    seen = _incidence(np.concatenate([np.full(len(o.point_idx), f) for f, o in enumerate(obs)]),
-                      np.concatenate([o.point_idx for o in obs]), (len(obs), n_points))
+    seen = _incidence(
+        np.concatenate([np.full(len(o.point_idx), f) for f, o in enumerate(obs)]),
+        np.concatenate([o.point_idx for o in obs]),
+        (len(obs), n_points),
+    )
     visible, contained, keep = _mask_frame_stats(M, mask_frame, len(obs), cfg)
     groups, visible = _merge_nodes(visible[keep], contained[keep], cfg)
     groups = groups @ _incidence(np.arange(keep.sum()), np.flatnonzero(keep), (int(keep.sum()), len(frame_of)))
@@ -396,7 +410,9 @@ def _mask_frame_stats(
     return visible, contained, ~under
 
 
-def _merge_nodes(visible: sp.csr_matrix, contained: sp.csr_matrix, cfg: ClusteringConfig) -> tuple[sp.csr_matrix, sp.csr_matrix]:
+def _merge_nodes(
+    visible: sp.csr_matrix, contained: sp.csr_matrix, cfg: ClusteringConfig
+) -> tuple[sp.csr_matrix, sp.csr_matrix]:
     """Iterative view-consensus merging; returns (nodes x input masks membership, nodes x frames visible).
 
     Observers of a pair = frames where both are visible (contained); supporters = masks containing
@@ -417,17 +433,17 @@ def _merge_nodes(visible: sp.csr_matrix, contained: sp.csr_matrix, cfg: Clusteri
             t = 1.0
         thresholds.append(max(t, float(cfg.min_observers)))
     for thr in thresholds:
-        O = (visible @ visible.T).tocsr()
+        observers = (visible @ visible.T).tocsr()
         S = (contained @ contained.T).tocsr()
-        O.data[O.data < thr] = 0
-        O.eliminate_zeros()
+        observers.data[observers.data < thr] = 0
+        observers.eliminate_zeros()
         # link where supporters >= consensus * observers, on pairs with enough observers
-        O = O.tocoo()
-        sup = np.asarray(S[O.row, O.col]).ravel()
-        ok = (O.row != O.col) & (sup >= cfg.consensus * O.data)
+        observers = observers.tocoo()
+        sup = np.asarray(S[observers.row, observers.col]).ravel()
+        ok = (observers.row != observers.col) & (sup >= cfg.consensus * observers.data)
         if not ok.any():
             continue
-        link = sp.coo_matrix((np.ones(int(ok.sum())), (O.row[ok], O.col[ok])), shape=O.shape)
+        link = sp.coo_matrix((np.ones(int(ok.sum())), (observers.row[ok], observers.col[ok])), shape=observers.shape)
         n_comp, comp = connected_components(link, directed=False)
         merge = _incidence(comp, np.arange(len(comp)), (n_comp, len(comp)))
         groups = _binary(merge @ groups)
@@ -437,7 +453,11 @@ def _merge_nodes(visible: sp.csr_matrix, contained: sp.csr_matrix, cfg: Clusteri
 
 
 def _cluster_points(
-    points: np.ndarray, groups: sp.csr_matrix, visible: sp.csr_matrix, M: sp.csr_matrix, seen: sp.csr_matrix,
+    points: np.ndarray,
+    groups: sp.csr_matrix,
+    visible: sp.csr_matrix,
+    M: sp.csr_matrix,
+    seen: sp.csr_matrix,
     cfg: ClusteringConfig,
 ) -> np.ndarray:
     """Point labels from mask clusters: detection-ratio filter, connectivity split, nesting removal."""

@@ -21,10 +21,11 @@ import dataclasses
 import functools
 import math
 import time
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Iterator, Literal
+from typing import Any, Literal
 
 import numpy as np
 from threadpoolctl import ThreadpoolController
@@ -146,9 +147,12 @@ class OpenReLoc:
         """What the map depends on (the harness shares maps across everything else: ablations of the
         query stages, refinement, verification)."""
         cfg = self.config
-        out: dict[str, Any] = {"encoder": cfg.encoder, "encoder_options": cfg.encoder_options,
-                               "encoder_weights": encoder_fingerprint(cfg.encoder, cfg.encoder_options),
-                               "mapping": dataclasses.asdict(cfg.mapping)}
+        out: dict[str, Any] = {
+            "encoder": cfg.encoder,
+            "encoder_options": cfg.encoder_options,
+            "encoder_weights": encoder_fingerprint(cfg.encoder, cfg.encoder_options),
+            "mapping": dataclasses.asdict(cfg.mapping),
+        }
         if cfg.mapping.instances_from == "segmenter":
             out.update(segmenter=cfg.segmenter, segmenter_options=cfg.segmenter_options)
         return out
@@ -156,7 +160,11 @@ class OpenReLoc:
     def build_map(self, mapping: SceneSequence, map_dir: Path) -> None:
         cfg = self.config
         encoder = create_encoder(cfg.encoder, **cfg.encoder_options)
-        segmenter = create_segmenter(cfg.segmenter, **cfg.segmenter_options) if cfg.mapping.instances_from == "segmenter" else None
+        segmenter = (
+            create_segmenter(cfg.segmenter, **cfg.segmenter_options)
+            if cfg.mapping.instances_from == "segmenter"
+            else None
+        )
         build_object_map(mapping, cfg.mapping, encoder, segmenter).save(map_dir)
 
     def load_map(self, map_dir: Path) -> None:
@@ -166,11 +174,15 @@ class OpenReLoc:
         built_with = enc.pop("fingerprint", None)
         name = enc.pop("name")
         if built_with is None:  # maps from before fingerprints: their weights cannot be checked
-            raise DataError(map_dir, f"records no {name} encoder weights fingerprint (built by an older version): "
-                                     "rebuild the map")
+            raise DataError(
+                map_dir, f"records no {name} encoder weights fingerprint (built by an older version): rebuild the map"
+            )
         if built_with != (now := encoder_fingerprint(name, enc)):
-            raise DataError(map_dir, f"built with {name} encoder weights {built_with}, but the installed weights are "
-                                     f"{now}: rebuild the map (descriptors from other weights cannot be compared)")
+            raise DataError(
+                map_dir,
+                f"built with {name} encoder weights {built_with}, but the installed weights are "
+                f"{now}: rebuild the map (descriptors from other weights cannot be compared)",
+            )
         self.encoder = create_encoder(name, **enc)
         # the describer's vocabulary and the phrases it returns recur across objects and queries: embed each once
         self.text_encoder = TextCache(self.encoder)
@@ -187,16 +199,20 @@ class OpenReLoc:
         self.ids = sorted(m.landmarks)
         self.descriptors = m.descriptor_matrix(self.ids)
         self.centers = np.array([m.landmarks[i].center for i in self.ids], dtype=np.float64).reshape(-1, 3)
-        self.extremes = np.array([extreme_points(m.landmarks[i].points) for i in self.ids]).reshape(len(self.ids), -1, 3)
+        self.extremes = np.array([extreme_points(m.landmarks[i].points) for i in self.ids]).reshape(
+            len(self.ids), -1, 3
+        )
         # (frames, landmarks): which landmarks each reference frame sees (the verification's place prior)
-        self.frame_visibility = np.array([[i in f.boxes for i in self.ids] for f in m.reference_frames],
-                                         dtype=bool).reshape(len(m.reference_frames), len(self.ids))
+        self.frame_visibility = np.array(
+            [[i in f.boxes for i in self.ids] for f in m.reference_frames], dtype=bool
+        ).reshape(len(m.reference_frames), len(self.ids))
         # (landmarks, landmarks): which pairs some reference frame sees together (the RANSAC's guided sampling)
         seen = self.frame_visibility.astype(np.float32)
         self.covisible = (seen.T @ seen) > 0
         self.crop_padding = float(m.config.get("descriptors", {}).get("padding", 0.1))
-        self.renderer = LabelRenderer([m.landmarks[i].points for i in self.ids], m.width, m.height, cfg.consistency,
-                                      seed=cfg.seed)
+        self.renderer = LabelRenderer(
+            [m.landmarks[i].points for i in self.ids], m.width, m.height, cfg.consistency, seed=cfg.seed
+        )
 
     # ------------------------------------------------------------------------------------ query
 
@@ -219,8 +235,11 @@ class OpenReLoc:
         stage = _stage_timer(timings)
         rgb = np.asarray(query.color)
         if rgb.ndim != 3 or rgb.shape[:2] != (m.height, m.width):
-            return Failure(f"query image is {rgb.shape[1::-1] if rgb.ndim >= 2 else rgb.shape}, the map's camera is "
-                           f"{m.width}x{m.height}", diag)
+            return Failure(
+                f"query image is {rgb.shape[1::-1] if rgb.ndim >= 2 else rgb.shape}, the map's camera is "
+                f"{m.width}x{m.height}",
+                diag,
+            )
         K = np.asarray(query.K, dtype=np.float64)
         if K.shape != (3, 3) or not (0 <= K[0, 2] <= m.width and 0 <= K[1, 2] <= m.height) or K[0, 0] <= 0:
             return Failure("query intrinsics do not fit the image size (principal point outside the image)", diag)
@@ -287,8 +306,15 @@ class OpenReLoc:
                     hypotheses.append((source, T_alt))
                     match_sets.append(alt_matches)
                 union, target_sets = _union(match_sets)
-                results = refine_poses([T for _, T in hypotheses], K, self._targets(union, objects), rcfg,
-                                       seed=cfg.seed, occluders=occluders, target_sets=target_sets)
+                results = refine_poses(
+                    [T for _, T in hypotheses],
+                    K,
+                    self._targets(union, objects),
+                    rcfg,
+                    seed=cfg.seed,
+                    occluders=occluders,
+                    target_sets=target_sets,
+                )
             explained = [0.0] * len(results)
             if cfg.consistency.enabled:
                 with stage("compare"):
@@ -302,16 +328,26 @@ class OpenReLoc:
             if match_sets[best] is not matches:  # a further verification mode won: its matches explain the pose
                 matches = match_sets[best]
                 diag["matches"] = [_match_diag(mt, objects, m) for mt in matches]
-            diag["hypotheses"] = [{"source": src, "initial_loss": _num(r.initial_loss), "loss": _num(r.loss),
-                                   "explained": round(e, 4), "iterations": r.iterations,
-                                   "T_wc": np.round(r.T_wc, 6).tolist()}
-                                  for (src, _), r, e in zip(hypotheses, results, explained)]
+            diag["hypotheses"] = [
+                {
+                    "source": src,
+                    "initial_loss": _num(r.initial_loss),
+                    "loss": _num(r.loss),
+                    "explained": round(e, 4),
+                    "iterations": r.iterations,
+                    "T_wc": np.round(r.T_wc, 6).tolist(),
+                }
+                for (src, _), r, e in zip(hypotheses, results, explained)
+            ]
             diag["chosen"] = hypotheses[best][0]
             T_prior = hypotheses[best][1]
             if refining:
                 diag["refine"] = {
-                    "iterations": res.iterations, "initial_loss": _num(res.initial_loss), "loss": _num(res.loss),
-                    "object_losses": {str(k): _num(v) for k, v in res.object_losses.items()}, "outliers": res.outliers,
+                    "iterations": res.iterations,
+                    "initial_loss": _num(res.initial_loss),
+                    "loss": _num(res.loss),
+                    "object_losses": {str(k): _num(v) for k, v in res.object_losses.items()},
+                    "outliers": res.outliers,
                 }
                 if res.reason is not None:
                     return Failure(res.reason, diag)
@@ -321,14 +357,29 @@ class OpenReLoc:
             T = T_prior = hypotheses[0][1]
         diag["prior_T_wc"] = np.round(T_prior, 6).tolist()
 
-        placed = [PlacedObject(m.landmarks[mt.landmark].center, m.landmarks[mt.landmark].box_min,
-                               m.landmarks[mt.landmark].box_max, m.landmarks[mt.landmark].category,
-                               objects[mt.query].phrase) for mt in matches]
+        placed = [
+            PlacedObject(
+                m.landmarks[mt.landmark].center,
+                m.landmarks[mt.landmark].box_min,
+                m.landmarks[mt.landmark].box_max,
+                m.landmarks[mt.landmark].category,
+                objects[mt.query].phrase,
+            )
+            for mt in matches
+        ]
         diag["explanation"] = explain_pose(T, placed)
         return PoseEstimate(T, diag)
 
-    def _hop(self, res: RefineResult, matches: list[Match], target_set: list[int], objects: list[QueryObject],
-             K: np.ndarray, occluders: np.ndarray, diag: dict[str, Any]) -> RefineResult:
+    def _hop(
+        self,
+        res: RefineResult,
+        matches: list[Match],
+        target_set: list[int],
+        objects: list[QueryObject],
+        K: np.ndarray,
+        occluders: np.ndarray,
+        diag: dict[str, Any],
+    ) -> RefineResult:
         """Basin hopping (``refinement.restart_degrees``): ``res``, the refinement of ``matches[target_set]``,
         refined again from starts orbiting those landmarks' centre; the lowest loss wins. The same
         ``matches`` as in its batch, so that the same points are subsampled and the losses compare."""
@@ -336,10 +387,18 @@ class OpenReLoc:
         assert m is not None
         pivot = np.mean([m.landmarks[matches[i].landmark].center for i in target_set], axis=0)
         starts = orbit_starts(res.T_wc, pivot, cfg.refinement.restart_degrees)
-        rcfg = dataclasses.replace(cfg.refinement, max_iterations=min(cfg.refinement.max_iterations,
-                                                                      cfg.refinement.restart_iterations))
-        hops = refine_poses(starts, K, self._targets(matches, objects), rcfg, seed=cfg.seed,
-                            occluders=occluders, target_sets=[target_set] * len(starts))
+        rcfg = dataclasses.replace(
+            cfg.refinement, max_iterations=min(cfg.refinement.max_iterations, cfg.refinement.restart_iterations)
+        )
+        hops = refine_poses(
+            starts,
+            K,
+            self._targets(matches, objects),
+            rcfg,
+            seed=cfg.seed,
+            occluders=occluders,
+            target_sets=[target_set] * len(starts),
+        )
         # over the objects that count in res.loss: a restart that pushes one more object past the outlier
         # factor would otherwise win by dropping it from its own mean
         counted = [i for i in res.object_losses if i not in res.outliers]
@@ -352,19 +411,27 @@ class OpenReLoc:
         diag["restart"] = {"loss": _num(loss(hop)), "before": _num(loss(res)), "won": won}
         return hop if won else res
 
-    def _explainer(self, masks: list[ObjectMask], appearance: np.ndarray | None,
-                   K: np.ndarray) -> Callable[[list[np.ndarray]], list[float]]:
+    def _explainer(
+        self, masks: list[ObjectMask], appearance: np.ndarray | None, K: np.ndarray
+    ) -> Callable[[list[np.ndarray]], list[float]]:
         """The render-and-compare score (:mod:`.consistency`) of camera-to-world poses against all query
         masks, the query's label grid and pair weights computed once; without appearance (the oracle
         diagnostic) every mask-landmark pair weighs 1."""
         labels = query_labels([mk.mask for mk in masks], self.config.consistency.stride)
-        weights = (np.ones((len(masks), len(self.ids))) if appearance is None
-                   else candidate_weights(appearance, self.config.consistency))
+        weights = (
+            np.ones((len(masks), len(self.ids)))
+            if appearance is None
+            else candidate_weights(appearance, self.config.consistency)
+        )
         return lambda poses: [consistency(self.renderer.render(T, K), labels, weights) for T in poses]
 
-    def _screen(self, alternatives: list[tuple[str, list[Match], np.ndarray]],
-                explained_by: Callable[[list[np.ndarray]], list[float]], diag: dict[str, Any],
-                stage: Any) -> list[tuple[str, list[Match], np.ndarray]]:
+    def _screen(
+        self,
+        alternatives: list[tuple[str, list[Match], np.ndarray]],
+        explained_by: Callable[[list[np.ndarray]], list[float]],
+        diag: dict[str, Any],
+        stage: Any,
+    ) -> list[tuple[str, list[Match], np.ndarray]]:
         """The further verification modes worth refining (``verification.refined_modes``): those whose
         unrefined pose explains the query best by render-and-compare, or, with it switched off, the
         RANSAC's next best. Drawing a pose costs ~1.5 ms, refining one ~0.1 s."""
@@ -380,15 +447,18 @@ class OpenReLoc:
         keep = sorted(np.argsort(-np.asarray(drawn), kind="stable")[:room].tolist())
         return [alternatives[j] for j in keep]
 
-    def _objects(self, rgb: np.ndarray, masks: list[ObjectMask], diag: dict[str, Any],
-                 stage: Any) -> tuple[list[QueryObject], np.ndarray] | Failure:
+    def _objects(
+        self, rgb: np.ndarray, masks: list[ObjectMask], diag: dict[str, Any], stage: Any
+    ) -> tuple[list[QueryObject], np.ndarray] | Failure:
         """Embed the query objects, keep the unique ones and describe them (paper section 3.2); also
         every mask's visual similarity to every landmark."""
         cfg, m = self.config, self.map
         assert m is not None
         with stage("encode"):
-            crops = [rgb[y0:y1, x0:x1] for x0, y0, x1, y1 in
-                     (pad_box(mk.box, self.crop_padding, m.width, m.height) for mk in masks)]
+            crops = [
+                rgb[y0:y1, x0:x1]
+                for x0, y0, x1, y1 in (pad_box(mk.box, self.crop_padding, m.width, m.height) for mk in masks)
+            ]
             visual = self.encoder.encode_images(crops)
             gammas = uniqueness(visual, self.descriptors)
             keep = np.flatnonzero(unique_mask(gammas, cfg.association))
@@ -396,7 +466,9 @@ class OpenReLoc:
         objects = [_query_object(masks[i], visual[i], float(gammas[i])) for i in sorted(keep.tolist())]
         diag["unique"] = len(objects)
         if len(objects) < cfg.min_objects:
-            return Failure(f"{len(objects)} of {len(masks)} object(s) unique enough to match, need {cfg.min_objects}", diag)
+            return Failure(
+                f"{len(objects)} of {len(masks)} object(s) unique enough to match, need {cfg.min_objects}", diag
+            )
         with stage("describe"):
             if self.describer is not None:
                 phrases = self.describer.describe_many(rgb, [o.mask for o in objects])
@@ -407,10 +479,18 @@ class OpenReLoc:
     def _targets(self, matches: list[Match], objects: list[QueryObject]) -> list[RefineTarget]:
         """What the refinement aligns: each matched object's mask with its landmark's points."""
         assert self.map is not None
-        return [RefineTarget(mt.landmark, self.map.landmarks[mt.landmark].points, objects[mt.query].mask) for mt in matches]
+        return [
+            RefineTarget(mt.landmark, self.map.landmarks[mt.landmark].points, objects[mt.query].mask) for mt in matches
+        ]
 
-    def _verify(self, matches: list[Match], objects: list[QueryObject], invalid: frozenset[int], K: np.ndarray,
-                diag: dict[str, Any]) -> tuple[list[Match], np.ndarray | None, list[tuple[str, list[Match], np.ndarray]]]:
+    def _verify(
+        self,
+        matches: list[Match],
+        objects: list[QueryObject],
+        invalid: frozenset[int],
+        K: np.ndarray,
+        diag: dict[str, Any],
+    ) -> tuple[list[Match], np.ndarray | None, list[tuple[str, list[Match], np.ndarray]]]:
         """Object-level RANSAC over the matched objects' candidates (:func:`verification_evidence`): the
         matches one pose explains, and that pose; the association unchanged when none does. Third: the
         further modes' (source, matches, pose), with ``verification.modes`` > 1."""
@@ -421,13 +501,18 @@ class OpenReLoc:
         # the oracle's matches are certain: the RANSAC only finds the pose they support, and no look-alikes
         n_candidates = 1 if cfg.association.oracle else vcfg.candidates
         place = vcfg.place_frames > 0 and not cfg.association.oracle
-        evidence = verification_evidence(objects, matched, self._place_ranking(objects, sims, invalid) if place else sims,
-                                         self.ids, invalid, n_candidates,
-                                         lead=int(vcfg.place_keeps_choice) if place else None)
+        evidence = verification_evidence(
+            objects,
+            matched,
+            self._place_ranking(objects, sims, invalid) if place else sims,
+            self.ids,
+            invalid,
+            n_candidates,
+            lead=int(vcfg.place_keeps_choice) if place else None,
+        )
         if not vcfg.hypothesis or cfg.no_coarse:  # further modes come only with the verified pose: skip their search
             vcfg = dataclasses.replace(vcfg, modes=1)
-        result = verify_matches(evidence, self.centers, self.extremes, K, vcfg, seed=cfg.seed,
-                                covisible=self.covisible)
+        result = verify_matches(evidence, self.centers, self.extremes, K, vcfg, seed=cfg.seed, covisible=self.covisible)
         if result is None:
             diag["verification"] = {"inliers": 0, "kept": "association"}
             return matches, None, []
@@ -437,20 +522,35 @@ class OpenReLoc:
             out = []
             for q, row in sorted(assignment.items()):
                 lid, o = self.ids[row], objects[q]
-                out.append(matched[q] if matched[q].landmark == lid else Match(
-                    query=q, landmark=lid, visual_sim=float(sims[q, row]),
-                    text_sim=None if o.text is None else float(self.descriptors[row] @ o.text), how="verified",
-                    candidates=[self.ids[r] for r in evidence[q].candidates]))
+                out.append(
+                    matched[q]
+                    if matched[q].landmark == lid
+                    else Match(
+                        query=q,
+                        landmark=lid,
+                        visual_sim=float(sims[q, row]),
+                        text_sim=None if o.text is None else float(self.descriptors[row] @ o.text),
+                        how="verified",
+                        candidates=[self.ids[r] for r in evidence[q].candidates],
+                    )
+                )
             return out
 
         out = as_matches(result.assignment)
         changed = sum(mt.how == "verified" for mt in out)
-        diag["verification"] = {"inliers": result.inliers, "hypotheses": result.hypotheses, "changed": changed,
-                                "dropped": len(matches) - (len(out) - changed)}
+        diag["verification"] = {
+            "inliers": result.inliers,
+            "hypotheses": result.hypotheses,
+            "changed": changed,
+            "dropped": len(matches) - (len(out) - changed),
+        }
         if result.alternatives:
             diag["verification"]["modes"] = 1 + len(result.alternatives)
-        return out, result.T_wc, [(f"verified:{j}", as_matches(a.assignment), a.T_wc)
-                                  for j, a in enumerate(result.alternatives, start=2)]
+        return (
+            out,
+            result.T_wc,
+            [(f"verified:{j}", as_matches(a.assignment), a.T_wc) for j, a in enumerate(result.alternatives, start=2)],
+        )
 
     def _place_ranking(self, objects: list[QueryObject], sims: np.ndarray, invalid: frozenset[int]) -> np.ndarray:
         """(objects, landmarks) candidate scores of the verification with its place prior
@@ -463,8 +563,9 @@ class OpenReLoc:
         scores[:, [r for r, i in enumerate(self.ids) if i in invalid]] = -np.inf
         return scores + vcfg.place_bonus * place_landmarks(scores, self.frame_visibility, vcfg.place_frames)
 
-    def _hypotheses(self, matches: list[Match], objects: list[QueryObject], K: np.ndarray,
-                    diag: dict[str, Any]) -> list[tuple[str, np.ndarray]]:
+    def _hypotheses(
+        self, matches: list[Match], objects: list[QueryObject], K: np.ndarray, diag: dict[str, Any]
+    ) -> list[tuple[str, np.ndarray]]:
         """(source, T_wc) starting poses: the ranked reference frames and the PnP pose (coarse stage),
         or only the uninformed start of the no-coarse ablation."""
         cfg, m = self.config, self.map
@@ -473,8 +574,12 @@ class OpenReLoc:
         ret = retrieve_reference(boxes, m.reference_frames, cfg.retrieval)
         if ret is None:
             return []
-        diag["reference_frame"] = {"index": ret.frame.index, "shared": ret.shared, "score": round(ret.score, 4),
-                                   "ranking": ret.ranking}
+        diag["reference_frame"] = {
+            "index": ret.frame.index,
+            "shared": ret.shared,
+            "score": round(ret.score, 4),
+            "ranking": ret.ranking,
+        }
         if cfg.no_coarse:
             return [("uninformed", self._uninformed_start([mt.landmark for mt in matches]))]
         out = [(f"reference:{f.index}", f.T_wc) for f in ret.ranked[: max(1, cfg.coarse.top_frames)]]
@@ -482,8 +587,14 @@ class OpenReLoc:
             qmasks = [objects[mt.query].mask for mt in matches]
             centroids = np.array([np.argwhere(mk)[:, ::-1].mean(0) for mk in qmasks])
             truncated = np.array([touches_border(mk) for mk in qmasks])
-            T = pnp_prior(centroids, truncated, [m.landmarks[mt.landmark].points for mt in matches], K,
-                          (m.width, m.height), cfg.coarse)
+            T = pnp_prior(
+                centroids,
+                truncated,
+                [m.landmarks[mt.landmark].points for mt in matches],
+                K,
+                (m.width, m.height),
+                cfg.coarse,
+            )
             if T is not None:
                 out.append(("pnp", T))
         return out
@@ -522,8 +633,15 @@ def choose_hypothesis(losses: list[float], explained: list[float], tie_share: fl
     return min((i for i in finite if explained[i] >= (1.0 - tie_share) * top), key=lambda i: (losses[i], i))
 
 
-def verification_evidence(objects: list[QueryObject], matched: dict[int, Match], scores: np.ndarray, ids: list[int],
-                          invalid: frozenset[int], n_candidates: int, lead: int | None = None) -> list[ObjectEvidence]:
+def verification_evidence(
+    objects: list[QueryObject],
+    matched: dict[int, Match],
+    scores: np.ndarray,
+    ids: list[int],
+    invalid: frozenset[int],
+    n_candidates: int,
+    lead: int | None = None,
+) -> list[ObjectEvidence]:
     """Each query object's candidate landmark rows for the verification (``matched``: query index -> its
     association match): the first ``lead`` of its association candidates (all with None), then its ranking
     by ``scores`` (object x landmark row: the visual cosine, or the place prior's), without invalid
@@ -580,8 +698,13 @@ def _union(match_sets: list[list[Match]]) -> tuple[list[Match], list[list[int]]]
 
 
 def _query_object(mk: ObjectMask, visual: np.ndarray, gamma: float) -> QueryObject:
-    return QueryObject(mask=mk.mask, box=np.asarray(mk.box, dtype=np.float64), visual=visual,
-                       instance_id=mk.instance_id, uniqueness=gamma)
+    return QueryObject(
+        mask=mk.mask,
+        box=np.asarray(mk.box, dtype=np.float64),
+        visual=visual,
+        instance_id=mk.instance_id,
+        uniqueness=gamma,
+    )
 
 
 def _match_diag(mt: Match, objects: list[QueryObject], m: ObjectMap) -> dict[str, Any]:

@@ -47,8 +47,10 @@ class Sightings:
     box: np.ndarray
     """(S, 4) float32 [x0, y0, x1, y1] of the seen points' pixels (x1, y1 exclusive)."""
 
-    def select(self, keep: np.ndarray) -> "Sightings":
-        return Sightings(self.frame[keep], self.landmark[keep], self.visibility[keep], self.n_points[keep], self.box[keep])
+    def select(self, keep: np.ndarray) -> Sightings:
+        return Sightings(
+            self.frame[keep], self.landmark[keep], self.visibility[keep], self.n_points[keep], self.box[keep]
+        )
 
 
 def landmark_sightings(obs: list[FrameObservation], labels: np.ndarray, cfg: ReferenceFrameConfig) -> Sightings:
@@ -68,9 +70,13 @@ def landmark_sightings(obs: list[FrameObservation], labels: np.ndarray, cfg: Ref
         hi = np.maximum.reduceat(uv, start, axis=0) + 1.0
         parts.append((np.full(len(ids), o.index), ids, count / sizes[ids], count, np.concatenate([lo, hi], axis=1)))
     if not parts:
-        return Sightings(np.zeros(0, int), np.zeros(0, int), np.zeros(0), np.zeros(0, int), np.zeros((0, 4), np.float32))
+        return Sightings(
+            np.zeros(0, int), np.zeros(0, int), np.zeros(0), np.zeros(0, int), np.zeros((0, 4), np.float32)
+        )
     f, i, v, n, b = (np.concatenate(x) for x in zip(*parts))
-    s = Sightings(f.astype(np.int64), i.astype(np.int64), v.astype(np.float64), n.astype(np.int64), b.astype(np.float32))
+    s = Sightings(
+        f.astype(np.int64), i.astype(np.int64), v.astype(np.float64), n.astype(np.int64), b.astype(np.float32)
+    )
     return s.select((s.visibility >= cfg.min_visibility) & (s.n_points >= cfg.min_points))
 
 
@@ -85,9 +91,12 @@ def select_reference_frames(sightings: Sightings, poses: np.ndarray, cfg: Refere
             continue
         for i, v in zip(ids, s.visibility):
             best[i] = max(best.get(i, 0.0), float(v))
-        out.append(ReferenceFrame(
-            index=int(f), T_wc=np.asarray(poses[f], dtype=np.float64),
-            boxes={i: b.copy() for i, b in zip(ids, s.box)},
-            visibility={i: float(v) for i, v in zip(ids, s.visibility)},
-        ))
+        out.append(
+            ReferenceFrame(
+                index=int(f),
+                T_wc=np.asarray(poses[f], dtype=np.float64),
+                boxes={i: b.copy() for i, b in zip(ids, s.box)},
+                visibility={i: float(v) for i, v in zip(ids, s.visibility)},
+            )
+        )
     return out

@@ -142,7 +142,9 @@ def place_landmarks(scores: np.ndarray, visible: np.ndarray, frames: int, clip: 
     return visible[top].any(0)
 
 
-def solve_pnp(p3: np.ndarray, p2: np.ndarray, K: np.ndarray, ransac_threshold: float | None = None) -> np.ndarray | None:
+def solve_pnp(
+    p3: np.ndarray, p2: np.ndarray, K: np.ndarray, ransac_threshold: float | None = None
+) -> np.ndarray | None:
     """T_cw from >= 4 2D-3D correspondences: SQPnP, then Levenberg-Marquardt; with ``ransac_threshold``
     (pixels) inside RANSAC and refined on its inliers (at least 4). None when OpenCV finds no finite pose."""
     p3 = np.ascontiguousarray(p3, dtype=np.float64).reshape(-1, 1, 3)
@@ -151,9 +153,16 @@ def solve_pnp(p3: np.ndarray, p2: np.ndarray, K: np.ndarray, ransac_threshold: f
         if ransac_threshold is None:
             ok, rvec, tvec = cv2.solvePnP(p3, p2, K, None, flags=cv2.SOLVEPNP_SQPNP)
         else:
-            ok, rvec, tvec, inliers = cv2.solvePnPRansac(p3, p2, K, None, iterationsCount=200,
-                                                         reprojectionError=ransac_threshold, confidence=0.999,
-                                                         flags=cv2.SOLVEPNP_SQPNP)
+            ok, rvec, tvec, inliers = cv2.solvePnPRansac(
+                p3,
+                p2,
+                K,
+                None,
+                iterationsCount=200,
+                reprojectionError=ransac_threshold,
+                confidence=0.999,
+                flags=cv2.SOLVEPNP_SQPNP,
+            )
             if not ok or inliers is None or len(inliers) < 4:
                 return None
             p3, p2 = p3[inliers.ravel()], p2[inliers.ravel()]
@@ -166,8 +175,14 @@ def solve_pnp(p3: np.ndarray, p2: np.ndarray, K: np.ndarray, ransac_threshold: f
     return T_cw if np.all(np.isfinite(T_cw)) else None
 
 
-def pnp_prior(centroids: np.ndarray, truncated: np.ndarray, points: list[np.ndarray], K: np.ndarray,
-              image_size: tuple[int, int], cfg: CoarseConfig) -> np.ndarray | None:
+def pnp_prior(
+    centroids: np.ndarray,
+    truncated: np.ndarray,
+    points: list[np.ndarray],
+    K: np.ndarray,
+    image_size: tuple[int, int],
+    cfg: CoarseConfig,
+) -> np.ndarray | None:
     """Camera-to-world pose from object correspondences: query mask centroids (``centroids``, (M, 2))
     <-> the matched landmarks' ``points``; None when there are too few or no consensus.
 
@@ -183,7 +198,11 @@ def pnp_prior(centroids: np.ndarray, truncated: np.ndarray, points: list[np.ndar
     w, h = image_size
     thr = cfg.pnp_threshold * float(np.hypot(w, h))
     centres = np.stack([np.asarray(p, np.float64).mean(0) for p in points])
-    use = ~np.asarray(truncated, bool) if int((~np.asarray(truncated, bool)).sum()) >= 4 else np.ones(len(centroids), bool)
+    use = (
+        ~np.asarray(truncated, bool)
+        if int((~np.asarray(truncated, bool)).sum()) >= 4
+        else np.ones(len(centroids), bool)
+    )
     T_cw = solve_pnp(centres[use], centroids[use], K, thr)
     for _ in range(cfg.pnp_iterations):
         if T_cw is None:

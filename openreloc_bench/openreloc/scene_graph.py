@@ -36,7 +36,10 @@ def build_scene_graph(landmarks: dict[int, Landmark], cfg: GraphConfig) -> nx.Gr
         return g
     centers = np.array([landmarks[i].center for i in ids], dtype=np.float64)
     valid = np.array([landmarks[i].valid for i in ids])
-    for sources, pool in ((np.flatnonzero(valid), np.flatnonzero(valid)), (np.flatnonzero(~valid), np.arange(len(ids)))):
+    for sources, pool in (
+        (np.flatnonzero(valid), np.flatnonzero(valid)),
+        (np.flatnonzero(~valid), np.arange(len(ids))),
+    ):
         if len(sources) == 0 or len(pool) < 2:
             continue
         k = min(cfg.knn + 1, len(pool))

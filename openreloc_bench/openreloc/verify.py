@@ -48,8 +48,9 @@ from openreloc_bench import geometry
 from openreloc_bench.openreloc.retrieval import solve_pnp
 from openreloc_bench.vision.preprocess import touches_border
 
-_DIRECTIONS = np.array([d for d in itertools.product((-1, 0, 1), repeat=3)
-                        if sum(map(abs, d)) in (1, 3)], dtype=np.float64)
+_DIRECTIONS = np.array(
+    [d for d in itertools.product((-1, 0, 1), repeat=3) if sum(map(abs, d)) in (1, 3)], dtype=np.float64
+)
 """The 6 axis and 8 diagonal directions: a landmark's extreme points along them bound its image box."""
 
 
@@ -248,14 +249,17 @@ def verify_matches(
             break
         if all(np.linalg.norm(cameras[k] - cameras[j]) >= cfg.mode_separation for j in starts):
             starts.append(k)
-    optimised = [c for c in (_consensus(table, iou[k], scores[k], R[k], t[k], centers, K, cfg) for k in starts)
-                 if c is not None]
+    optimised = [
+        c for c in (_consensus(table, iou[k], scores[k], R[k], t[k], centers, K, cfg) for k in starts) if c is not None
+    ]
     kept: list[Verification] = []
     for assignment, T_wc, _ in sorted(optimised, key=lambda c: -c[2]):
         if len(kept) >= max(1, cfg.modes):
             break
-        if all(assignment != v.assignment and np.linalg.norm(T_wc[:3, 3] - v.T_wc[:3, 3]) >= cfg.mode_separation
-               for v in kept):  # local optimisation can land two starts on one mode
+        if all(
+            assignment != v.assignment and np.linalg.norm(T_wc[:3, 3] - v.T_wc[:3, 3]) >= cfg.mode_separation
+            for v in kept
+        ):  # local optimisation can land two starts on one mode
             kept.append(Verification(assignment, T_wc, hypotheses=len(R)))
     if not kept:
         return None
@@ -263,9 +267,16 @@ def verify_matches(
     return kept[0]
 
 
-def _consensus(table: _CandidateTable, iou: np.ndarray, score: float, R: np.ndarray, t: np.ndarray,
-               centers: np.ndarray, K: np.ndarray,
-               cfg: VerifyConfig) -> tuple[dict[int, int], np.ndarray, float] | None:
+def _consensus(
+    table: _CandidateTable,
+    iou: np.ndarray,
+    score: float,
+    R: np.ndarray,
+    t: np.ndarray,
+    centers: np.ndarray,
+    K: np.ndarray,
+    cfg: VerifyConfig,
+) -> tuple[dict[int, int], np.ndarray, float] | None:
     """(assignment, T_wc, score) of one sampled pose (R, t world to camera, ``iou`` its row of overlaps,
     ``score`` its score): its inliers, the pose re-fitted to them while that raises the score
     (LO-RANSAC); None below ``min_inliers``."""
@@ -294,8 +305,16 @@ def _consensus(table: _CandidateTable, iou: np.ndarray, score: float, R: np.ndar
 class _CandidateTable:
     """All (object, candidate landmark) pairs flattened, with what scoring needs per pair."""
 
-    def __init__(self, objects: list[ObjectEvidence], usable: list[int], k: int, centers: np.ndarray,
-                 extremes: np.ndarray, K: np.ndarray, cfg: VerifyConfig):
+    def __init__(
+        self,
+        objects: list[ObjectEvidence],
+        usable: list[int],
+        k: int,
+        centers: np.ndarray,
+        extremes: np.ndarray,
+        K: np.ndarray,
+        cfg: VerifyConfig,
+    ):
         h, w = objects[usable[0]].mask.shape
         self.K, self.size, self.cfg = K, (w, h), cfg
         self.centroid: dict[int, np.ndarray] = {}
@@ -311,7 +330,7 @@ class _CandidateTable:
                 rank.append(r)
                 boxes.append([xs.min(), ys.min(), xs.max() + 1, ys.max() + 1])
         self.rows, self.obj, self.rank = np.array(rows), np.array(obj), np.array(rank)
-        self.weight = cfg.rank_weight ** self.rank
+        self.weight = cfg.rank_weight**self.rank
         self.box = np.array(boxes, dtype=np.float64)
         self.X = np.asarray(centers, np.float64)[self.rows]
         self.E = np.asarray(extremes, np.float64)[self.rows]
@@ -320,8 +339,9 @@ class _CandidateTable:
         self.pair = {(q, r): m for m, (q, r) in enumerate(zip(obj, rows))}  # (object, landmark row) -> flat index
         self.usable = usable
 
-    def fit_boxes(self, assignment: dict[int, int], R: np.ndarray,
-                  t: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    def fit_boxes(
+        self, assignment: dict[int, int], R: np.ndarray, t: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray] | None:
         """(R, t) world to camera, started at (R, t), whose projected boxes of the assigned landmarks best
         fit their masks' boxes (:func:`fit_boxes`)."""
         flat = np.array([self.pair[q, row] for q, row in assignment.items()])
@@ -340,8 +360,9 @@ class _CandidateTable:
             # candidates': the min / max over it combine contiguous rows (over a last axis of 14 they took
             # half the time); ~2 MB chunks. On 8 queries: 111 -> 46 ms per call, the same IoUs to the bit.
             n = min(chunk, len(R) - s)
-            Xc = ((R[s : s + chunk].reshape(-1, 3) @ self.E_by_extreme).reshape(n, 3, -1)
-                  + t[s : s + chunk, :, None]).reshape(n, 3, n_ext, n_cand)
+            Xc = (
+                (R[s : s + chunk].reshape(-1, 3) @ self.E_by_extreme).reshape(n, 3, -1) + t[s : s + chunk, :, None]
+            ).reshape(n, 3, n_ext, n_cand)
             z = Xc[:, 2]
             ahead = z > 0.05
             front = ahead.all(1)
@@ -351,8 +372,9 @@ class _CandidateTable:
             x0, x1 = np.clip(u.min(1) + cx, 0, w), np.clip(u.max(1) + cx, 0, w)
             y0, y1 = np.clip(v.min(1) + cy, 0, h), np.clip(v.max(1) + cy, 0, h)
             b = self.box
-            inter = (np.clip(np.minimum(x1, b[:, 2]) - np.maximum(x0, b[:, 0]), 0, None)
-                     * np.clip(np.minimum(y1, b[:, 3]) - np.maximum(y0, b[:, 1]), 0, None))
+            inter = np.clip(np.minimum(x1, b[:, 2]) - np.maximum(x0, b[:, 0]), 0, None) * np.clip(
+                np.minimum(y1, b[:, 3]) - np.maximum(y0, b[:, 1]), 0, None
+            )
             union = (x1 - x0) * (y1 - y0) + (b[:, 2] - b[:, 0]) * (b[:, 3] - b[:, 1]) - inter
             iou = np.where(front, inter / np.maximum(union, 1e-9), 0.0)
             out[s : s + chunk] = np.where(iou >= self.cfg.min_iou, iou, 0.0) * self.weight
@@ -378,8 +400,16 @@ class _CandidateTable:
         return out
 
 
-def fit_boxes(extremes: np.ndarray, boxes: np.ndarray, K: np.ndarray, size: tuple[int, int], R: np.ndarray,
-              t: np.ndarray, scale: float, iterations: int = 20) -> tuple[np.ndarray, np.ndarray] | None:
+def fit_boxes(
+    extremes: np.ndarray,
+    boxes: np.ndarray,
+    K: np.ndarray,
+    size: tuple[int, int],
+    R: np.ndarray,
+    t: np.ndarray,
+    scale: float,
+    iterations: int = 20,
+) -> tuple[np.ndarray, np.ndarray] | None:
     """The pose (R, t world to camera, started there) whose projected boxes of ``extremes`` (n, E, 3) best
     fit ``boxes`` (n, 4) [x0, y0, x1, y1] in an image of ``size`` (w, h): Huber (``scale`` pixels) on the
     edge offsets, by damped Gauss-Newton on a left perturbation of the pose. An edge is the projection
@@ -447,8 +477,9 @@ def fit_boxes(extremes: np.ndarray, boxes: np.ndarray, K: np.ndarray, size: tupl
     return (R, t) if np.all(np.isfinite(R)) and np.all(np.isfinite(t)) else None
 
 
-def draw_triples(table: _CandidateTable, samples: int, rng: np.random.Generator,
-                 covisible: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def draw_triples(
+    table: _CandidateTable, samples: int, rng: np.random.Generator, covisible: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """``samples`` random triples: (samples, 3) indices into ``table.usable`` and (samples, 3) flat
     candidate indices. Objects are drawn in proportion to their weight (``truncated_weight``), each one's
     candidate with probability halving per rank (the association's choice about half the time); the
@@ -481,8 +512,9 @@ def draw_triples(table: _CandidateTable, samples: int, rng: np.random.Generator,
     return objs, flat
 
 
-def _sample_poses(table: _CandidateTable, K: np.ndarray, samples: int, rng: np.random.Generator,
-                  covisible: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def _sample_poses(
+    table: _CandidateTable, K: np.ndarray, samples: int, rng: np.random.Generator, covisible: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """P3P poses, R_cw (H, 3, 3) and t_cw (H, 3), from :func:`draw_triples`; only the P3P solves loop.
     The poses of the first ``fitted_triples`` distinct triples drawn come a second time, fitted to the
     triple's three mask boxes."""
@@ -503,8 +535,9 @@ def _sample_poses(table: _CandidateTable, K: np.ndarray, samples: int, rng: np.r
             continue
         solved.add(triple)
         try:
-            n, rv, tv = cv2.solveP3P(X[s].reshape(-1, 1, 3), centroids[objs[s]].reshape(-1, 1, 2),
-                                     K, None, flags=cv2.SOLVEPNP_P3P)
+            n, rv, tv = cv2.solveP3P(
+                X[s].reshape(-1, 1, 3), centroids[objs[s]].reshape(-1, 1, 2), K, None, flags=cv2.SOLVEPNP_P3P
+            )
         except cv2.error:
             continue
         rvecs += [r.reshape(1, 3) for r in rv[:n]]
@@ -513,8 +546,15 @@ def _sample_poses(table: _CandidateTable, K: np.ndarray, samples: int, rng: np.r
             for r, v in zip(rv[:n], tv[:n]):
                 if not (np.isfinite(r).all() and np.isfinite(v).all()):
                     continue
-                fit = fit_boxes(table.E[flat[s]], table.box[flat[s]], K, table.size,
-                                cv2.Rodrigues(r)[0], v.reshape(3), table.cfg.box_scale)
+                fit = fit_boxes(
+                    table.E[flat[s]],
+                    table.box[flat[s]],
+                    K,
+                    table.size,
+                    cv2.Rodrigues(r)[0],
+                    v.reshape(3),
+                    table.cfg.box_scale,
+                )
                 if fit is not None:
                     rvecs.append(cv2.Rodrigues(fit[0])[0].reshape(1, 3))
                     tvecs.append(fit[1].reshape(1, 3))

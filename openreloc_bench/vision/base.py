@@ -11,8 +11,9 @@ Backends register under a name (``@register_encoder("clip")``) and are built fro
 from __future__ import annotations
 
 import abc
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any, Callable, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -80,7 +81,7 @@ class Describer(abc.ABC):
         """One phrase per mask of the same image; backends override it to batch their model calls."""
         return [self.describe(rgb, m) for m in masks]
 
-    def prepare(self) -> None:
+    def prepare(self) -> None:  # noqa: B027 -- an optional hook, not abstract
         """Compute what every query needs (vocabulary embeddings...) now, when a map loads, so that the
         first queries do not pay for it in their latency. Default: nothing to prepare."""
 

@@ -9,8 +9,9 @@ from __future__ import annotations
 
 import json
 import re
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 import torch
@@ -33,7 +34,9 @@ WEIGHTS_HINT = (
 )
 
 
-def clip_preprocess(crops: Sequence[np.ndarray], size: int, mean: Sequence[float], std: Sequence[float]) -> torch.Tensor:
+def clip_preprocess(
+    crops: Sequence[np.ndarray], size: int, mean: Sequence[float], std: Sequence[float]
+) -> torch.Tensor:
     """RGB uint8 crops -> (N, 3, size, size) float tensor, CLIP style (shortest side, centre crop)."""
     out = np.empty((len(crops), size, size, 3), dtype=np.float32)
     for i, c in enumerate(crops):
@@ -79,7 +82,9 @@ class ClipEncoder(ImageTextEncoder):
             self.model = CLIPModel.from_pretrained(source, local_files_only=is_local).eval()
             self.tokenizer = AutoTokenizer.from_pretrained(source, local_files_only=is_local)
         except OSError as e:
-            raise ConfigError(f"cannot load CLIP '{self.model_id}' ({str(e).splitlines()[0]}): {WEIGHTS_HINT}") from None
+            raise ConfigError(
+                f"cannot load CLIP '{self.model_id}' ({str(e).splitlines()[0]}): {WEIGHTS_HINT}"
+            ) from None
         vcfg = self.model.config.vision_config
         self.image_size = int(vcfg.image_size)
         self.mean, self.std = CLIP_MEAN, CLIP_STD
@@ -106,8 +111,11 @@ class ClipEncoder(ImageTextEncoder):
         out = np.zeros((len(texts), self.dim), np.float32)
         for s in range(0, len(texts), self.batch_size):
             tok = self.tokenizer(
-                texts[s : s + self.batch_size], padding="max_length", truncation=True,
-                max_length=self.max_length, return_tensors="pt",
+                texts[s : s + self.batch_size],
+                padding="max_length",
+                truncation=True,
+                max_length=self.max_length,
+                return_tensors="pt",
             )
             feats = self.model.get_text_features(input_ids=tok["input_ids"], attention_mask=tok["attention_mask"])
             out[s : s + len(tok["input_ids"])] = _features(feats).numpy()

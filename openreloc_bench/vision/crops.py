@@ -6,9 +6,9 @@ the same view the encoders get at query time, resized to a fixed size and stored
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Iterable
 
 import numpy as np
 from tqdm import tqdm
@@ -40,7 +40,7 @@ class CropSet:
         """'scene/object id': one key per physical object (views of it share the key)."""
         return [f"{s}/{o}" for s, o in zip(self.scene, self.object_id)]
 
-    def subset(self, idx: np.ndarray | list[int]) -> "CropSet":
+    def subset(self, idx: np.ndarray | list[int]) -> CropSet:
         idx = list(np.asarray(idx, dtype=int))
         lists = {k: [getattr(self, k)[i] for i in idx] for k in self._label_fields()}
         return CropSet(self.images[idx], **lists)
@@ -53,12 +53,12 @@ class CropSet:
         np.savez_compressed(path, images=self.images, **{k: np.asarray(getattr(self, k)) for k in self._label_fields()})
 
     @classmethod
-    def load(cls, path: Path) -> "CropSet":
+    def load(cls, path: Path) -> CropSet:
         with np.load(path, allow_pickle=False) as z:
             return cls(z["images"], **{k: z[k].tolist() for k in cls._label_fields()})
 
     @classmethod
-    def concat(cls, sets: Iterable["CropSet"]) -> "CropSet":
+    def concat(cls, sets: Iterable[CropSet]) -> CropSet:
         sets = list(sets)
         if not sets:
             return cls(np.zeros((0, 1, 1, 3), np.uint8))

@@ -147,8 +147,17 @@ class OpenAIDescriber(Describer):
         self.api_key = api_key if api_key is not None else os.environ.get("OPENAI_API_KEY", "")
         if timeout_s <= 0 or max_retries < 0 or backoff_s < 0:
             raise ConfigError("openai describer: need timeout_s > 0, max_retries >= 0, backoff_s >= 0")
-        self.timeout_s, self.max_retries, self.backoff_s, self.max_tokens = timeout_s, int(max_retries), backoff_s, max_tokens
-        self.cache_dir = Path(cache_dir) if cache_dir else Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "openreloc_bench" / "describer"
+        self.timeout_s, self.max_retries, self.backoff_s, self.max_tokens = (
+            timeout_s,
+            int(max_retries),
+            backoff_s,
+            max_tokens,
+        )
+        self.cache_dir = (
+            Path(cache_dir)
+            if cache_dir
+            else Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "openreloc_bench" / "describer"
+        )
         self._encoder = encoder
         self._fallback = fallback
         self.calls = 0
@@ -162,8 +171,13 @@ class OpenAIDescriber(Describer):
 
     def _request(self, payload: dict[str, Any]) -> str:
         req = urllib.request.Request(
-            f"{self.base_url}/chat/completions", data=json.dumps(payload).encode("utf-8"), method="POST",
-            headers={"Content-Type": "application/json", **({"Authorization": f"Bearer {self.api_key}"} if self.api_key else {})},
+            f"{self.base_url}/chat/completions",
+            data=json.dumps(payload).encode("utf-8"),
+            method="POST",
+            headers={
+                "Content-Type": "application/json",
+                **({"Authorization": f"Bearer {self.api_key}"} if self.api_key else {}),
+            },
         )
         self.calls += 1
         with urllib.request.urlopen(req, timeout=self.timeout_s) as resp:
@@ -193,10 +207,15 @@ class OpenAIDescriber(Describer):
             "model": self.model,
             "max_tokens": self.max_tokens,
             "temperature": 0,
-            "messages": [{"role": "user", "content": [
-                {"type": "text", "text": PROMPT},
-                *({"type": "image_url", "image_url": {"url": f"data:image/png;base64,{b}"}} for b in images),
-            ]}],
+            "messages": [
+                {
+                    "role": "user",
+                    "content": [
+                        {"type": "text", "text": PROMPT},
+                        *({"type": "image_url", "image_url": {"url": f"data:image/png;base64,{b}"}} for b in images),
+                    ],
+                }
+            ],
         }
         error = ""
         for attempt in range(self.max_retries + 1):

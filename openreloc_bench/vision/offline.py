@@ -12,10 +12,11 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 import torch
@@ -56,7 +57,11 @@ class ImageTower(nn.Module):
         layers: list[nn.Module] = []
         c_in = 3
         for i, c in enumerate(cfg.widths):
-            layers += [nn.Conv2d(c_in, c, 3, stride=2 if i % 2 else 1, padding=1, bias=False), nn.BatchNorm2d(c), nn.ReLU(inplace=True)]
+            layers += [
+                nn.Conv2d(c_in, c, 3, stride=2 if i % 2 else 1, padding=1, bias=False),
+                nn.BatchNorm2d(c),
+                nn.ReLU(inplace=True),
+            ]
             c_in = c
         self.features = nn.Sequential(*layers)
         self.head = nn.Sequential(nn.Linear(c_in, cfg.hidden), nn.ReLU(inplace=True), nn.Linear(cfg.hidden, cfg.dim))
@@ -114,7 +119,11 @@ class TextTower:
         missing = list(dict.fromkeys(t for t in texts if t not in self._cache))
         if missing:
             emb = self._load().encode(
-                missing, batch_size=self.batch_size, convert_to_numpy=True, normalize_embeddings=True, show_progress_bar=False
+                missing,
+                batch_size=self.batch_size,
+                convert_to_numpy=True,
+                normalize_embeddings=True,
+                show_progress_bar=False,
             )
             self._cache.update(zip(missing, np.asarray(emb, np.float32)))
         if not texts:

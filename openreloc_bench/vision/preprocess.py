@@ -7,7 +7,7 @@ cannot be an image with a one-line :class:`InputError`.
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import cv2
 import numpy as np

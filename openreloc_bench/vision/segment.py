@@ -102,8 +102,17 @@ class NoisyGtSegmenter(GtSegmenter):
         objs = _masks_from_ids(inst, self.min_area, self.ids, self.exclude)
         rng = self._rng(rgb, inst)
         # draw every random number per object in a fixed order, so one rate does not shift the others
-        draws = [(rng.random(), rng.random(), rng.random(), rng.integers(1, self.max_morph_px + 1) if self.max_morph_px else 0,
-                  rng.random(), rng.uniform(-1, 1, 4)) for _ in objs]
+        draws = [
+            (
+                rng.random(),
+                rng.random(),
+                rng.random(),
+                rng.integers(1, self.max_morph_px + 1) if self.max_morph_px else 0,
+                rng.random(),
+                rng.uniform(-1, 1, 4),
+            )
+            for _ in objs
+        ]
         merged_into: dict[int, int] = {}
         kernel = np.ones((3, 3), np.uint8)
         for i, (o, d) in enumerate(zip(objs, draws)):
@@ -176,7 +185,9 @@ class GraphSegmenter(Segmenter):
     def superpixels(self, rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Watershed superpixels (labels 0..n-1) from grid seeds at local gradient minima, and the smoothed image."""
         h, w = rgb.shape[:2]
-        smooth = cv2.pyrMeanShiftFiltering(rgb, 6, 18) if self.smooth == "mean-shift" else cv2.bilateralFilter(rgb, 5, 30, 5)
+        smooth = (
+            cv2.pyrMeanShiftFiltering(rgb, 6, 18) if self.smooth == "mean-shift" else cv2.bilateralFilter(rgb, 5, 30, 5)
+        )
         lab = cv2.cvtColor(smooth, cv2.COLOR_RGB2LAB)
         grad = np.zeros((h, w), np.float32)
         for c in range(3):
@@ -209,9 +220,9 @@ class GraphSegmenter(Segmenter):
         flat = sp.ravel()
         size = np.bincount(flat, minlength=n).astype(np.float64)
         mean = np.stack([np.bincount(flat, lab[:, c], minlength=n) for c in range(3)], 1) / np.maximum(size, 1)[:, None]
-        pairs = np.concatenate([
-            np.stack([sp[:, :-1].ravel(), sp[:, 1:].ravel()], 1), np.stack([sp[:-1].ravel(), sp[1:].ravel()], 1)
-        ])
+        pairs = np.concatenate(
+            [np.stack([sp[:, :-1].ravel(), sp[:, 1:].ravel()], 1), np.stack([sp[:-1].ravel(), sp[1:].ravel()], 1)]
+        )
         pairs = np.sort(pairs[pairs[:, 0] != pairs[:, 1]], 1).astype(np.int64)
         code = np.unique(pairs[:, 0] * n + pairs[:, 1])
         pairs = np.stack([code // n, code % n], 1)
@@ -241,7 +252,11 @@ class GraphSegmenter(Segmenter):
         rgb = as_rgb_uint8(rgb)
         H, W = rgb.shape[:2]
         scale = min(1.0, self.work_width / W)
-        small = cv2.resize(rgb, (max(8, round(W * scale)), max(8, round(H * scale))), interpolation=cv2.INTER_AREA) if scale < 1 else rgb
+        small = (
+            cv2.resize(rgb, (max(8, round(W * scale)), max(8, round(H * scale))), interpolation=cv2.INTER_AREA)
+            if scale < 1
+            else rgb
+        )
         labels = self.regions(small)
         if scale < 1:
             labels = cv2.resize(labels.astype(np.int32), (W, H), interpolation=cv2.INTER_NEAREST).astype(np.int64)

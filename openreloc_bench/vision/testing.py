@@ -17,7 +17,9 @@ from openreloc_bench.data import io
 
 def _byte_symbols() -> list[str]:
     """GPT-2/CLIP byte-level BPE alphabet: one printable symbol per byte value."""
-    printable = list(range(ord("!"), ord("~") + 1)) + list(range(ord("¡"), ord("¬") + 1)) + list(range(ord("®"), ord("ÿ") + 1))
+    printable = (
+        list(range(ord("!"), ord("~") + 1)) + list(range(ord("¡"), ord("¬") + 1)) + list(range(ord("®"), ord("ÿ") + 1))
+    )
     extra = [256 + i for i in range(256 - len(printable))]
     return [chr(c) for c in printable + extra]
 
@@ -28,7 +30,14 @@ def tiny_clip_checkpoint(directory: Path | str, seed: int = 0, projection_dim: i
     Idempotent: an existing complete checkpoint is reused (same seed -> same weights either way).
     """
     text = dict(hidden_size=32, intermediate_size=64, num_hidden_layers=2, num_attention_heads=2)
-    vision = dict(hidden_size=32, intermediate_size=64, num_hidden_layers=2, num_attention_heads=2, image_size=image_size, patch_size=8)
+    vision = dict(
+        hidden_size=32,
+        intermediate_size=64,
+        num_hidden_layers=2,
+        num_attention_heads=2,
+        image_size=image_size,
+        patch_size=8,
+    )
     return random_clip_checkpoint(directory, text, vision, projection_dim, seed)
 
 
@@ -50,7 +59,14 @@ def random_clip_checkpoint(directory: Path | str, text: dict, vision: dict, proj
     CLIPTokenizer.from_pretrained(str(directory)).save_pretrained(str(directory))
     bos, eos = vocab["<|startoftext|>"], vocab["<|endoftext|>"]
     config = CLIPConfig(
-        text_config=dict(vocab_size=len(vocab), max_position_embeddings=77, bos_token_id=bos, eos_token_id=eos, pad_token_id=eos, **text),
+        text_config=dict(
+            vocab_size=len(vocab),
+            max_position_embeddings=77,
+            bos_token_id=bos,
+            eos_token_id=eos,
+            pad_token_id=eos,
+            **text,
+        ),
         vision_config=dict(vision),
         projection_dim=projection_dim,
     )
@@ -59,7 +75,11 @@ def random_clip_checkpoint(directory: Path | str, text: dict, vision: dict, proj
     size = int(config.vision_config.image_size)
     io.write_json(
         directory / "preprocessor_config.json",
-        {"crop_size": size, "image_mean": [0.48145466, 0.4578275, 0.40821073],
-         "image_std": [0.26862954, 0.26130258, 0.27577711], "size": {"shortest_edge": size}},
+        {
+            "crop_size": size,
+            "image_mean": [0.48145466, 0.4578275, 0.40821073],
+            "image_std": [0.26862954, 0.26130258, 0.27577711],
+            "size": {"shortest_edge": size},
+        },
     )
     return directory

@@ -10,9 +10,10 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import cv2
 import numpy as np
@@ -101,7 +102,11 @@ def caption_table(crops: CropSet) -> tuple[list[str], list[list[int]]]:
             for t in voc.CAPTION_TEMPLATES:
                 if ("{colour}" in t and not col) or (("{mat}" in t or "{matn}" in t) and not mat):
                     continue
-                texts.append(voc.with_article(t.format(noun=voc.noun(cat), colour=col, mat=voc.MATERIAL_ADJECTIVE.get(mat, mat), matn=mat)))
+                texts.append(
+                    voc.with_article(
+                        t.format(noun=voc.noun(cat), colour=col, mat=voc.MATERIAL_ADJECTIVE.get(mat, mat), matn=mat)
+                    )
+                )
             if desc and not voc.contains_held_out(desc, held):
                 texts.append(desc)
             bad = [x for x in texts if voc.contains_held_out(x, held)]
@@ -155,7 +160,11 @@ def train_tower(
     for i, k in enumerate(keys):
         groups.setdefault(k, []).append(i)
     key_id = _key_ids(keys)
-    images = crops.images if crops.images.shape[1] == tower_cfg.input_size else _resize_all(crops.images, tower_cfg.input_size)
+    images = (
+        crops.images
+        if crops.images.shape[1] == tower_cfg.input_size
+        else _resize_all(crops.images, tower_cfg.input_size)
+    )
 
     # channels_last: 30% faster conv training on this CPU (2.3 vs 3.3 s per 256-crop step at 64 px)
     tower = ImageTower(tower_cfg).to(device, memory_format=torch.channels_last)
@@ -187,7 +196,10 @@ def train_tower(
             scale = logit_scale.exp().clamp(max=100.0)
             logits = scale * emb @ text_emb[torch.from_numpy(uniq).to(device)].T
             inv_t = torch.from_numpy(inv).to(device)
-            loss_clip = 0.5 * (F.cross_entropy(logits, inv_t) + _soft_ce(logits.T, inv_t[None, :] == torch.arange(len(uniq), device=device)[:, None]))
+            loss_clip = 0.5 * (
+                F.cross_entropy(logits, inv_t)
+                + _soft_ce(logits.T, inv_t[None, :] == torch.arange(len(uniq), device=device)[:, None])
+            )
             loss = loss_clip
             if cfg.instance_weight > 0:
                 ea, eb = emb[: len(anchor)], emb[len(anchor) :]
@@ -201,10 +213,18 @@ def train_tower(
             sched.step()
             losses.append(float(loss.detach()))
             bar.update(1)
-        history.append({"epoch": epoch + 1, "loss": float(np.mean(losses)), "temperature": float(1 / logit_scale.detach().exp())})
-        log(f"epoch {epoch + 1}/{cfg.epochs} loss {history[-1]['loss']:.3f} temperature {history[-1]['temperature']:.4f}")
+        history.append(
+            {"epoch": epoch + 1, "loss": float(np.mean(losses)), "temperature": float(1 / logit_scale.detach().exp())}
+        )
+        log(
+            f"epoch {epoch + 1}/{cfg.epochs} loss {history[-1]['loss']:.3f} temperature {history[-1]['temperature']:.4f}"
+        )
     bar.close()
-    return tower.cpu().eval(), {"history": history, "captions": len(captions), "train_seconds": round(time.time() - t0, 1)}
+    return tower.cpu().eval(), {
+        "history": history,
+        "captions": len(captions),
+        "train_seconds": round(time.time() - t0, 1),
+    }
 
 
 def training_device(name: str) -> torch.device:
@@ -229,8 +249,9 @@ def repeat_factors(categories: list[str], threshold: float) -> np.ndarray:
     return np.maximum(1.0, np.sqrt(threshold / share))[inv] if threshold > 0 else np.ones(len(inv))
 
 
-def epoch_batches(scene_of: np.ndarray, size: int, scenes_per_batch: int, rng: np.random.Generator,
-                  repeats: np.ndarray | None = None) -> list[np.ndarray]:
+def epoch_batches(
+    scene_of: np.ndarray, size: int, scenes_per_batch: int, rng: np.random.Generator, repeats: np.ndarray | None = None
+) -> list[np.ndarray]:
     """One epoch's anchor batches of ``size`` crop indices, each crop used at most once (or, with
     ``repeats``, floor(r) or ceil(r) times at random, r on average): random over all crops, or, with
     ``scenes_per_batch`` k > 0, k runs of ``size // k`` crops of one scene each (a run may straddle two
@@ -243,7 +264,9 @@ def epoch_batches(scene_of: np.ndarray, size: int, scenes_per_batch: int, rng: n
         seq = rng.permutation(pool)
         run, k = size, 1
     else:
-        seq = np.concatenate([rng.permutation(pool[scene_of[pool] == sc]) for sc in rng.permutation(scene_of.max() + 1)])
+        seq = np.concatenate(
+            [rng.permutation(pool[scene_of[pool] == sc]) for sc in rng.permutation(scene_of.max() + 1)]
+        )
         run = max(1, size // scenes_per_batch)
         k = max(1, size // run)
     runs = [seq[i : i + run] for i in range(0, len(seq) - run + 1, run)]
@@ -316,7 +339,9 @@ def evaluate(
     out.update(_instance_recall(E, crops))
     thumbs = np.stack([np.asarray(_thumb(im), np.float32).ravel() for im in crops.images])
     thumbs -= thumbs.mean(1, keepdims=True)
-    out["baseline_8x8_thumbnail"] = _instance_recall(thumbs / np.linalg.norm(thumbs, axis=1, keepdims=True).clip(1e-6), crops)
+    out["baseline_8x8_thumbnail"] = _instance_recall(
+        thumbs / np.linalg.norm(thumbs, axis=1, keepdims=True).clip(1e-6), crops
+    )
     # unseen synonyms
     syn: dict[str, Any] = {}
     for cat, words in voc.HELD_OUT_SYNONYMS.items():

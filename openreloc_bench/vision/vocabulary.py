@@ -11,16 +11,60 @@ from __future__ import annotations
 import re
 
 COLOURS: tuple[str, ...] = (
-    "red", "dark red", "maroon", "orange", "yellow", "gold", "green", "dark green", "olive", "lime green",
-    "teal", "turquoise", "light blue", "blue", "navy", "purple", "lavender", "pink", "magenta", "white",
-    "cream", "beige", "tan", "light brown", "brown", "dark brown", "grey", "light grey", "dark grey",
-    "silver", "black", "copper",
+    "red",
+    "dark red",
+    "maroon",
+    "orange",
+    "yellow",
+    "gold",
+    "green",
+    "dark green",
+    "olive",
+    "lime green",
+    "teal",
+    "turquoise",
+    "light blue",
+    "blue",
+    "navy",
+    "purple",
+    "lavender",
+    "pink",
+    "magenta",
+    "white",
+    "cream",
+    "beige",
+    "tan",
+    "light brown",
+    "brown",
+    "dark brown",
+    "grey",
+    "light grey",
+    "dark grey",
+    "silver",
+    "black",
+    "copper",
 )
 """Colour names the describer can choose from (a superset of the generator's)."""
 
 MATERIALS: tuple[str, ...] = (
-    "wooden", "fabric", "metal", "ceramic", "glass", "leather", "plastic", "stone", "paper", "rubber",
-    "wicker", "marble", "velvet", "steel", "porcelain", "concrete", "bamboo", "cardboard",
+    "wooden",
+    "fabric",
+    "metal",
+    "ceramic",
+    "glass",
+    "leather",
+    "plastic",
+    "stone",
+    "paper",
+    "rubber",
+    "wicker",
+    "marble",
+    "velvet",
+    "steel",
+    "porcelain",
+    "concrete",
+    "bamboo",
+    "cardboard",
 )
 """Material adjectives for describer phrases."""
 
@@ -70,7 +114,9 @@ sewing machine, spinning wheel, loom, telescope, microscope, binoculars, magnify
 barometer, thermometer, weather station, ceiling light, desk organiser, tall plant, toy blocks, book stack,
 soap bottle, toothbrush cup, towel rack, toy ball, basketball, plate stack
 """
-OBJECT_NOUNS: tuple[str, ...] = tuple(dict.fromkeys(n.strip() for n in _NOUNS.replace("\n", " ").split(",") if n.strip()))
+OBJECT_NOUNS: tuple[str, ...] = tuple(
+    dict.fromkeys(n.strip() for n in _NOUNS.replace("\n", " ").split(",") if n.strip())
+)
 """Several hundred indoor object nouns: the describer's open noun vocabulary."""
 
 HELD_OUT_SYNONYMS: dict[str, tuple[str, ...]] = {

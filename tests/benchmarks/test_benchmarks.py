@@ -12,18 +12,20 @@ import sys
 from pathlib import Path
 
 import numpy as np
-from tests.conftest import write_tiny_scene
 
 from openreloc_bench import geometry
 from openreloc_bench.cli import main
 from openreloc_bench.data.results import read_results
 from openreloc_bench.data.scene import Scene
+from tests.conftest import write_tiny_scene
 
 BENCHMARKS = Path(__file__).resolve().parents[2] / "benchmarks"
 
 
 def run_benchmark(script: str, *args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, str(BENCHMARKS / script), *args], capture_output=True, text=True, timeout=300)
+    return subprocess.run(
+        [sys.executable, str(BENCHMARKS / script), *args], capture_output=True, text=True, timeout=300
+    )
 
 
 def test_bench_localize_pools_the_queries_of_map_scene_pairs(tmp_path: Path) -> None:
@@ -32,9 +34,40 @@ def test_bench_localize_pools_the_queries_of_map_scene_pairs(tmp_path: Path) -> 
     for seed, n_query in ((0, 3), (1, 4)):
         scene = write_tiny_scene(tmp_path / f"tiny{seed}", n_query=n_query, seed=seed)
         map_dir, poses = tmp_path / f"m{seed}", tmp_path / f"poses{seed}.txt"
-        assert main(["map", "--method", "nearest-frame", "--scene", str(scene), "--out", str(map_dir), "--set", "thumb_size=8"]) == 0
-        assert main(["localize", "--method", "nearest-frame", "--set", "thumb_size=8", "--map", str(map_dir),
-                     "--scene", str(scene), "--out", str(poses)]) == 0
+        assert (
+            main(
+                [
+                    "map",
+                    "--method",
+                    "nearest-frame",
+                    "--scene",
+                    str(scene),
+                    "--out",
+                    str(map_dir),
+                    "--set",
+                    "thumb_size=8",
+                ]
+            )
+            == 0
+        )
+        assert (
+            main(
+                [
+                    "localize",
+                    "--method",
+                    "nearest-frame",
+                    "--set",
+                    "thumb_size=8",
+                    "--map",
+                    str(map_dir),
+                    "--scene",
+                    str(scene),
+                    "--out",
+                    str(poses),
+                ]
+            )
+            == 0
+        )
         seq = Scene(scene).sequence("query")
         estimates = read_results(poses)
         errors += [geometry.translation_error(T, estimates[name]) for name, T in zip(seq.names, seq.poses)]

@@ -30,15 +30,35 @@ def data(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def eval_args(data: Path, out: Path, *extra: str) -> list[str]:
-    return ["eval", "--scenes", "s1,s2", "--data", str(data), "--out", str(out), "--plugin", "harness_test_methods",
-            *extra]
+    return [
+        "eval",
+        "--scenes",
+        "s1,s2",
+        "--data",
+        str(data),
+        "--out",
+        str(out),
+        "--plugin",
+        "harness_test_methods",
+        *extra,
+    ]
 
 
 def test_eval_prints_a_metrics_table(data: Path, tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     cfg = tmp_path / "oracle.yaml"
     cfg.write_text("noise_m: 0.3\n")
-    rc = main(eval_args(data, tmp_path / "r", "--methods", "test-oracle,nearest-frame", "--timeout", "0",
-                        "--method-config", f"test-oracle={cfg}"))
+    rc = main(
+        eval_args(
+            data,
+            tmp_path / "r",
+            "--methods",
+            "test-oracle,nearest-frame",
+            "--timeout",
+            "0",
+            "--method-config",
+            f"test-oracle={cfg}",
+        )
+    )
     out = capsys.readouterr().out
     assert rc == 0
     assert "R@50cm%" in out and "nearest-frame" in out and "test-oracle" in out
@@ -64,8 +84,9 @@ def test_eval_prints_the_spread_over_seeds(data: Path, tmp_path: Path, capsys: p
         (["--methods", "test-oracle", "--seeds", "0,one"], "--seeds expects comma-separated integers"),
     ],
 )
-def test_bad_input_is_one_line(data: Path, tmp_path: Path, capsys: pytest.CaptureFixture, extra: list[str],
-                               message: str) -> None:
+def test_bad_input_is_one_line(
+    data: Path, tmp_path: Path, capsys: pytest.CaptureFixture, extra: list[str], message: str
+) -> None:
     assert main(eval_args(data, tmp_path / "r", *extra)) == 2
     err = capsys.readouterr().err.strip()
     assert message in err and len(err.splitlines()) == 1
@@ -78,8 +99,9 @@ def test_bad_input_is_one_line(data: Path, tmp_path: Path, capsys: pytest.Captur
         (["--suite", "SUITE"], "unknown key 'scenes[0].colour'"),
     ],
 )
-def test_missing_scene_or_bad_suite_is_one_line(data: Path, tmp_path: Path, capsys, source: list[str],
-                                               message: str) -> None:
+def test_missing_scene_or_bad_suite_is_one_line(
+    data: Path, tmp_path: Path, capsys, source: list[str], message: str
+) -> None:
     suite = tmp_path / "s.yaml"
     suite.write_text("name: t\nscenes:\n  - {name: x, seed: 1, colour: red}\n")
     source = [str(suite) if a == "SUITE" else a for a in source]
@@ -92,11 +114,24 @@ def test_killed_run_resumes_without_recomputing_or_duplicating(data: Path, tmp_p
     out = tmp_path / "r"
     slow = tmp_path / "slow.yaml"
     slow.write_text("delay_s: 0.4\n")
-    args = eval_args(data, out, "--methods", "test-oracle", "--splits", "query,query_light1",
-                     "--method-config", f"test-oracle={slow}")
+    args = eval_args(
+        data,
+        out,
+        "--methods",
+        "test-oracle",
+        "--splits",
+        "query,query_light1",
+        "--method-config",
+        f"test-oracle={slow}",
+    )
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([HARNESS_TESTS, os.environ.get("PYTHONPATH", "")])}
-    proc = subprocess.Popen([sys.executable, "-m", "openreloc_bench.cli", *args], env=env, start_new_session=True,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "openreloc_bench.cli", *args],
+        env=env,
+        start_new_session=True,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     deadline = time.time() + 120
     while not list(out.glob("runs/*/*/*/*.done.json")) and time.time() < deadline and proc.poll() is None:
         time.sleep(0.05)

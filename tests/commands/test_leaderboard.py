@@ -22,8 +22,26 @@ def results(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     data = root / "data"
     for i, name in enumerate(["s1", "s2"]):
         make_scene(data, name, n_query=5, seed=20 + i)
-    assert main(["eval", "--scenes", "s1,s2", "--data", str(data), "--out", str(root / "res"), "--timeout", "0",
-                 "--methods", "test-oracle,nearest-frame", "--plugin", "harness_test_methods"]) == 0
+    assert (
+        main(
+            [
+                "eval",
+                "--scenes",
+                "s1,s2",
+                "--data",
+                str(data),
+                "--out",
+                str(root / "res"),
+                "--timeout",
+                "0",
+                "--methods",
+                "test-oracle,nearest-frame",
+                "--plugin",
+                "harness_test_methods",
+            ]
+        )
+        == 0
+    )
     seq = Scene(data / "s1").sequence("query")
     write_results(root / "sub" / "s1.txt", {n: perturb(T, n, 0.4, 8.0) for n, T in zip(seq.names, seq.poses)})
     assert main(["score", str(root / "sub"), "--data", str(data), "--method", "outside"]) == 0
@@ -42,7 +60,7 @@ def test_leaderboard_merges_eval_and_score_results(results: tuple[Path, Path], c
     assert lines[0].startswith("| test-oracle")  # sorted by Recall@25cm within (track, split)
     assert "## Per scene: query" in md and "| outside | 100 / 0 |" in md
     page = (out / "index.html").read_text()
-    assert "<table class=\"sortable\">" in page and "addEventListener('click'" in page
+    assert '<table class="sortable">' in page and "addEventListener('click'" in page
     assert page.count("<tr>") == len(board) + 1
     for name in ("cumulative_translation", "cumulative_rotation", "recall_per_scene", "topdown_s1", "topdown_s2"):
         png = out / "plots" / f"{name}.png"
@@ -51,8 +69,28 @@ def test_leaderboard_merges_eval_and_score_results(results: tuple[Path, Path], c
 
 def test_leaderboard_pools_the_seeds_of_a_variant(results: tuple[Path, Path], tmp_path: Path) -> None:
     root, data = results
-    assert main(["eval", "--scenes", "s1,s2", "--data", str(data), "--out", str(tmp_path / "res"), "--timeout", "0",
-                 "--methods", "test-oracle", "--seeds", "0,3", "--plugin", "harness_test_methods"]) == 0
+    assert (
+        main(
+            [
+                "eval",
+                "--scenes",
+                "s1,s2",
+                "--data",
+                str(data),
+                "--out",
+                str(tmp_path / "res"),
+                "--timeout",
+                "0",
+                "--methods",
+                "test-oracle",
+                "--seeds",
+                "0,3",
+                "--plugin",
+                "harness_test_methods",
+            ]
+        )
+        == 0
+    )
     assert main(["leaderboard", str(tmp_path / "res"), "--out", str(tmp_path / "board")]) == 0
     board = pd.read_csv(tmp_path / "board" / "leaderboard.csv")
     row = board.set_index("method").loc["test-oracle"]  # noise 5 cm and 35 cm: every query within 50, half within 25

@@ -5,29 +5,65 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from tests.conftest import write_tiny_scene
 
 from openreloc_bench.cli import main
 from openreloc_bench.commands.map import parse_overrides
 from openreloc_bench.data.results import read_results
 from openreloc_bench.errors import ConfigError
 from openreloc_bench.methods import Failure, NearestFrame, register
+from tests.conftest import write_tiny_scene
 
 
 def test_parse_overrides_nests_dotted_keys_and_parses_yaml() -> None:
-    assert parse_overrides(["a.b=1", "a.c=x", "d=true", "e=[1, 2]"]) == {"a": {"b": 1, "c": "x"}, "d": True, "e": [1, 2]}
+    assert parse_overrides(["a.b=1", "a.c=x", "d=true", "e=[1, 2]"]) == {
+        "a": {"b": 1, "c": "x"},
+        "d": True,
+        "e": [1, 2],
+    }
     with pytest.raises(ConfigError):
         parse_overrides(["novalue"])
 
 
 def test_map_then_localize_nearest_frame(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     scene = write_tiny_scene(tmp_path / "tiny")
-    assert main(["map", "--method", "nearest-frame", "--scene", str(scene), "--out", str(tmp_path / "m"),
-                 "--set", "thumb_size=8"]) == 0
+    assert (
+        main(
+            [
+                "map",
+                "--method",
+                "nearest-frame",
+                "--scene",
+                str(scene),
+                "--out",
+                str(tmp_path / "m"),
+                "--set",
+                "thumb_size=8",
+            ]
+        )
+        == 0
+    )
     assert "MB" in capsys.readouterr().out
     out = tmp_path / "poses.txt"
-    assert main(["localize", "--method", "nearest-frame", "--set", "thumb_size=8", "--map", str(tmp_path / "m"),
-                 "--scene", str(scene), "--out", str(out), "--diagnostics", str(tmp_path / "d.jsonl")]) == 0
+    assert (
+        main(
+            [
+                "localize",
+                "--method",
+                "nearest-frame",
+                "--set",
+                "thumb_size=8",
+                "--map",
+                str(tmp_path / "m"),
+                "--scene",
+                str(scene),
+                "--out",
+                str(out),
+                "--diagnostics",
+                str(tmp_path / "d.jsonl"),
+            ]
+        )
+        == 0
+    )
     text = capsys.readouterr().out
     assert "localized 3/3" in text and "recall@50cm" in text
     assert sorted(read_results(out)) == ["query/000000", "query/000001", "query/000002"]
@@ -52,8 +88,24 @@ def test_per_query_failures_do_not_stop_localize(tmp_path: Path, capsys: pytest.
     scene = write_tiny_scene(tmp_path / "tiny")
     assert main(["map", "--method", "flaky", "--scene", str(scene), "--out", str(tmp_path / "m")]) == 0
     out = tmp_path / "poses.txt"
-    assert main(["localize", "--method", "flaky", "--map", str(tmp_path / "m"), "--scene", str(scene),
-                 "--out", str(out), "--track", "predicted"]) == 0
+    assert (
+        main(
+            [
+                "localize",
+                "--method",
+                "flaky",
+                "--map",
+                str(tmp_path / "m"),
+                "--scene",
+                str(scene),
+                "--out",
+                str(out),
+                "--track",
+                "predicted",
+            ]
+        )
+        == 0
+    )
     text = capsys.readouterr().out
     assert "localized 1/3" in text and "raised RuntimeError: boom" in text and "too few objects" in text
     assert list(read_results(out)) == ["query/000002"]
@@ -62,6 +114,20 @@ def test_per_query_failures_do_not_stop_localize(tmp_path: Path, capsys: pytest.
 def test_unknown_method_and_bad_set_are_one_line_errors(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     scene = write_tiny_scene(tmp_path / "tiny")
     assert main(["map", "--method", "nope", "--scene", str(scene), "--out", str(tmp_path / "m")]) == 2
-    assert main(["map", "--method", "nearest-frame", "--scene", str(scene), "--out", str(tmp_path / "m"),
-                 "--set", "bogus=1"]) == 2
+    assert (
+        main(
+            [
+                "map",
+                "--method",
+                "nearest-frame",
+                "--scene",
+                str(scene),
+                "--out",
+                str(tmp_path / "m"),
+                "--set",
+                "bogus=1",
+            ]
+        )
+        == 2
+    )
     assert "bogus" in capsys.readouterr().err

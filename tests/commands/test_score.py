@@ -30,8 +30,9 @@ def estimates(data: Path, split: str, noise_m: float) -> dict[str, np.ndarray]:
 
 
 @pytest.mark.parametrize("layout", ["per-scene", "per-split"])
-def test_scores_both_layouts_and_counts_missing_queries_as_failures(data: Path, tmp_path: Path, layout: str,
-                                                                    capsys) -> None:
+def test_scores_both_layouts_and_counts_missing_queries_as_failures(
+    data: Path, tmp_path: Path, layout: str, capsys
+) -> None:
     sub = tmp_path / "mysub"
     est = {**estimates(data, "query", 0.3), **estimates(data, "query_light1", 0.1)}
     del est["query/000003"]
@@ -59,8 +60,7 @@ def test_scores_both_layouts_and_counts_missing_queries_as_failures(data: Path, 
         ("query/000000 1 0 0", "expected 'name qw qx qy qz tx ty tz'"),
     ],
 )
-def test_malformed_pose_files_are_one_line_errors(data: Path, tmp_path: Path, capsys, line: str,
-                                                  message: str) -> None:
+def test_malformed_pose_files_are_one_line_errors(data: Path, tmp_path: Path, capsys, line: str, message: str) -> None:
     (tmp_path / "s1.txt").write_text(RESULTS_HEADER + "\n" + line + "\n")
     assert main(["score", str(tmp_path), "--data", str(data)]) == 2
     err = capsys.readouterr().err.strip()

@@ -49,7 +49,9 @@ def test_train_encoder_reproduces_its_weights(trained: tuple[Path, Path], tmp_pa
     data, first = trained
     assert train(data, tmp_path / "again") == 0
     assert (tmp_path / "again" / "image_tower.pt").read_bytes() == (first / "image_tower.pt").read_bytes()
-    assert json.loads((tmp_path / "again" / "evaluation.json").read_text()) == json.loads((first / "evaluation.json").read_text())
+    assert json.loads((tmp_path / "again" / "evaluation.json").read_text()) == json.loads(
+        (first / "evaluation.json").read_text()
+    )
 
 
 def test_train_encoder_bad_arguments(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -65,7 +67,10 @@ def test_train_encoder_refuses_a_device_it_cannot_use(tmp_path: Path, capsys: py
 
 def test_training_scenes_stay_out_of_the_validation_range(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     # --seed 9000: the scene seeds would start at TRAINING_SEED_MIN + 9,000,000 = VALIDATION_SEED_MIN
-    assert main(["train-encoder", "--out", str(tmp_path / "w"), "--seed", "9000", "--scenes", "1", "--eval-scenes", "1"]) == 2
+    assert (
+        main(["train-encoder", "--out", str(tmp_path / "w"), "--seed", "9000", "--scenes", "1", "--eval-scenes", "1"])
+        == 2
+    )
     assert "outside the training range" in capsys.readouterr().err
     assert not (tmp_path / "w" / "scenes" / "train").exists()  # refused before generating anything
 

@@ -101,8 +101,13 @@ def test_forced_colour_material_size_are_used():
 
 @pytest.mark.parametrize(
     ("kwargs", "word"),
-    [({"category": "flux_capacitor"}, "flux_capacitor"), ({"colour": "octarine"}, "octarine"),
-     ({"material": "adamant"}, "adamant"), ({"size": "huge"}, "huge"), ({"style": "baroque"}, "baroque")],
+    [
+        ({"category": "flux_capacitor"}, "flux_capacitor"),
+        ({"colour": "octarine"}, "octarine"),
+        ({"material": "adamant"}, "adamant"),
+        ({"size": "huge"}, "huge"),
+        ({"style": "baroque"}, "baroque"),
+    ],
 )
 def test_bad_arguments_raise_config_error(kwargs, word):
     args = {"category": "mug"} | kwargs

@@ -18,8 +18,20 @@ from generators.spec import SceneSpec, load_suite, spec_hash
 from openreloc_bench import config, geometry
 from openreloc_bench.data.scene import SPLITS, STRUCTURAL_CATEGORIES, Scene
 
-TINY = dict(name="tiny", seed=3, width=96, height=72, objects_per_room=12, room_side_min=4.0, room_side_max=4.5,
-            mapping_step_m=0.5, mapping_step_deg=30.0, max_mapping_frames=12, n_query=4, n_displaced=2)
+TINY = dict(
+    name="tiny",
+    seed=3,
+    width=96,
+    height=72,
+    objects_per_room=12,
+    room_side_min=4.0,
+    room_side_max=4.5,
+    mapping_step_m=0.5,
+    mapping_step_deg=30.0,
+    max_mapping_frames=12,
+    n_query=4,
+    n_displaced=2,
+)
 ROOT = Path(__file__).resolve().parents[2]
 
 
@@ -89,8 +101,10 @@ def test_query_viewpoints_and_visibility(tiny: Path) -> None:
 
 def test_light_variants_darker_and_displaced_differs(tiny: Path) -> None:
     scene = Scene(tiny)
-    means = [np.mean([f.color.mean() for f in scene.sequence(s)]) for s in ("query", "query_light1", "query_light2",
-                                                                          "query_light3", "query_light4")]
+    means = [
+        np.mean([f.color.mean() for f in scene.sequence(s)])
+        for s in ("query", "query_light1", "query_light2", "query_light3", "query_light4")
+    ]
     assert all(a > b for a, b in zip(means, means[1:])), means
     q, d = scene.sequence("query"), scene.sequence("query_displaced")
     moved = {m["id"] for m in scene.displacements()}
@@ -108,13 +122,16 @@ def test_byte_identical_and_seed_dependent(tiny: Path, tmp_path: Path) -> None:
 def test_suite_with_process_pool(tmp_path: Path, tiny: Path) -> None:
     small = {**TINY, "max_mapping_frames": 4, "n_query": 2, "n_displaced": 1}
     suite_yaml = tmp_path / "s.yaml"
-    suite_yaml.write_text(yaml.safe_dump({"name": "s", "defaults": small,
-                                          "scenes": [{"name": "x", "seed": 3}, {"name": "y", "seed": 5}]}))
+    suite_yaml.write_text(
+        yaml.safe_dump({"name": "s", "defaults": small, "scenes": [{"name": "x", "seed": 3}, {"name": "y", "seed": 5}]})
+    )
     out = generate_suite(load_suite(suite_yaml), tmp_path / "out", workers=2)
     assert [p.name for p in out] == ["x", "y"]
     assert Scene(out[0]).info["spec_hash"] != Scene(out[1]).info["spec_hash"]
     # the pool worker renders exactly what an in-process run renders
-    ref = generate_scene(config.from_dict(SceneSpec, {**small, "name": "x", "seed": 3}), tmp_path / "ref", progress=False)
+    ref = generate_scene(
+        config.from_dict(SceneSpec, {**small, "name": "x", "seed": 3}), tmp_path / "ref", progress=False
+    )
     assert _files(ref) == _files(out[0])
 
 

@@ -34,6 +34,7 @@ def test_rooms_floors_and_structure(layout_and_spec) -> None:
     if spec.kind != "single-room":
         assert "door" in cats
         import networkx as nx
+
         g = layout.room_graph()
         for f in range(spec.floors):
             assert nx.is_connected(g.subgraph(r.name for r in layout.rooms_on(f)))
@@ -73,7 +74,8 @@ def test_deterministic_and_seed_dependent() -> None:
     assert all(np.array_equal(x.transform, y.transform) for x, y in zip(a.instances, b.instances))
     c = build_layout(SceneSpec(**{**spec.__dict__, "seed": spec.seed + 1}))
     assert [o.category for o in c.instances] != [o.category for o in a.instances] or not np.allclose(
-        a.instances[-1].transform, c.instances[-1].transform)
+        a.instances[-1].transform, c.instances[-1].transform
+    )
 
 
 def test_repeated_identical_instances() -> None:

@@ -9,7 +9,20 @@ from generators.materials import COLOURS, MATERIALS, make_texture
 from openreloc_bench.errors import ConfigError
 
 REQUIRED_MATERIALS = ("wood", "fabric", "plaster", "metal", "ceramic", "paper", "plastic", "glass", "leather", "stone")
-REQUIRED_COLOURS = ("red", "blue", "white", "black", "grey", "brown", "beige", "green", "yellow", "orange", "pink", "purple")
+REQUIRED_COLOURS = (
+    "red",
+    "blue",
+    "white",
+    "black",
+    "grey",
+    "brown",
+    "beige",
+    "green",
+    "yellow",
+    "orange",
+    "pink",
+    "purple",
+)
 
 
 def test_required_materials_and_colours_exist():

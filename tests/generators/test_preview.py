@@ -13,8 +13,13 @@ from openreloc_bench.data import io
 
 
 def test_preview_cli(tmp_path: Path) -> None:
-    scene = generate_scene(SceneSpec(name="p", seed=2, width=64, height=48, objects_per_room=8, max_mapping_frames=6,
-                                     n_query=2, n_displaced=1), tmp_path, progress=False)
+    scene = generate_scene(
+        SceneSpec(
+            name="p", seed=2, width=64, height=48, objects_per_room=8, max_mapping_frames=6, n_query=2, n_displaced=1
+        ),
+        tmp_path,
+        progress=False,
+    )
     out = tmp_path / "pics" / "sheet.png"
     assert main(["preview", str(scene), "--out", str(out), "--frames", "2"]) == 0
     for p in (out, out.with_name("sheet_plan.png")):

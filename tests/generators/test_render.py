@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from generators.layout import Instance, Layout, Light, Room, _part, box_mesh
 from generators import render
+from generators.layout import Instance, Layout, Light, Room, _part, box_mesh
 from generators.render import MAX_MATERIALS, create_renderer, fovy_from_K
 from openreloc_bench import geometry
 from openreloc_bench.errors import ConfigError
@@ -15,8 +15,15 @@ W, H = 160, 120
 
 
 def _box(iid: int, lo, hi, colour: str, category: str, structural: bool) -> Instance:
-    return Instance(id=iid, category=category, parts=[_part([box_mesh(lo, hi)], "plaster", colour, iid)],
-                    transform=np.eye(4), structural=structural, room="r", floor=0)
+    return Instance(
+        id=iid,
+        category=category,
+        parts=[_part([box_mesh(lo, hi)], "plaster", colour, iid)],
+        transform=np.eye(4),
+        structural=structural,
+        room="r",
+        floor=0,
+    )
 
 
 @pytest.fixture(scope="module")
@@ -31,16 +38,26 @@ def box_room():
         _box(6, (0, 0, 2.7), (4, 5, 2.8), "white", "ceiling", True),
         _box(7, (1.5, 3.5, 0), (2.5, 4.0, 1.0), "red", "box", False),
     ]
-    layout = Layout([Room("r", "living", 0, (0, 0, 4, 5), 0.0, 2.7)], [], [Light(np.array([2, 2.5, 2.3]), "r", 0)],
-                    insts, (4.0, 5.0), [0.0], 2.7)
+    layout = Layout(
+        [Room("r", "living", 0, (0, 0, 4, 5), 0.0, 2.7)],
+        [],
+        [Light(np.array([2, 2.5, 2.3]), "r", 0)],
+        insts,
+        (4.0, 5.0),
+        [0.0],
+        2.7,
+    )
     r = create_renderer(layout, "mujoco", W, H)
     yield r
     r.close()
 
 
 K = geometry.intrinsics_from_fov(W, H, 60.0)
-POSES = [geometry.look_at([2, 0.5, 1.0], [2, 3.5, 0.5]), geometry.look_at([0.6, 1.0, 1.6], [2.0, 3.75, 0.5]),
-         geometry.look_at([3.5, 2.0, 0.4], [1.8, 3.6, 0.7])]
+POSES = [
+    geometry.look_at([2, 0.5, 1.0], [2, 3.5, 0.5]),
+    geometry.look_at([0.6, 1.0, 1.6], [2.0, 3.75, 0.5]),
+    geometry.look_at([3.5, 2.0, 0.4], [1.8, 3.6, 0.7]),
+]
 
 
 @pytest.mark.parametrize("pose", range(len(POSES)))
@@ -108,8 +125,10 @@ def test_culling_is_exact(monkeypatch) -> None:
     from generators.spec import SceneSpec
     from generators.trajectories import mapping_trajectory
 
-    for spec in (SceneSpec(name="c", kind="multi-room", seed=31, rooms=5, objects_per_room=6, width=W, height=H),
-                 SceneSpec(name="d", kind="multi-floor", seed=32, rooms=2, floors=2, objects_per_room=5, width=W, height=H)):
+    for spec in (
+        SceneSpec(name="c", kind="multi-room", seed=31, rooms=5, objects_per_room=6, width=W, height=H),
+        SceneSpec(name="d", kind="multi-floor", seed=32, rooms=2, floors=2, objects_per_room=5, width=W, height=H),
+    ):
         layout = build_layout(spec)
         poses = mapping_trajectory(layout, spec)[::25]
         with create_renderer(layout, "mujoco", W, H) as r:
@@ -125,10 +144,19 @@ def test_culling_is_exact(monkeypatch) -> None:
 def _many_boxes(n: int, colours: tuple[str, ...]) -> Layout:
     """n small boxes in a row, cycling through ``colours``, every part with its own texture seed."""
     insts = [_box(1, (0, 0, -0.1), (n * 0.1, 2, 0), "brown", "floor", True)]
-    insts += [_box(i + 2, (0.1 * i, 1.0, 0), (0.1 * i + 0.05, 1.05, 0.05), colours[i % len(colours)], "box", False)
-              for i in range(n)]
-    return Layout([Room("r", "living", 0, (0, 0, n * 0.1, 2), 0.0, 2.7)], [], [Light(np.array([1, 1, 2.3]), "r", 0)],
-                  insts, (n * 0.1, 2.0), [0.0], 2.7)
+    insts += [
+        _box(i + 2, (0.1 * i, 1.0, 0), (0.1 * i + 0.05, 1.05, 0.05), colours[i % len(colours)], "box", False)
+        for i in range(n)
+    ]
+    return Layout(
+        [Room("r", "living", 0, (0, 0, n * 0.1, 2), 0.0, 2.7)],
+        [],
+        [Light(np.array([1, 1, 2.3]), "r", 0)],
+        insts,
+        (n * 0.1, 2.0),
+        [0.0],
+        2.7,
+    )
 
 
 @pytest.mark.parametrize("parts", [MAX_MATERIALS, MAX_MATERIALS + 100])

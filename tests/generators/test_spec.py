@@ -33,10 +33,17 @@ def _write(tmp_path: Path, scene: dict, defaults: dict | None = None, purpose: s
     return p
 
 
-@pytest.mark.parametrize(("purpose", "seed", "ok"), [
-    ("benchmark", 5, True), ("benchmark", TRAINING_SEED_MIN, False), ("benchmark", VALIDATION_SEED_MIN, False),
-    ("validation", VALIDATION_SEED_MIN, True), ("validation", VALIDATION_SEED_MIN - 1, False), ("validation", 5, False),
-])
+@pytest.mark.parametrize(
+    ("purpose", "seed", "ok"),
+    [
+        ("benchmark", 5, True),
+        ("benchmark", TRAINING_SEED_MIN, False),
+        ("benchmark", VALIDATION_SEED_MIN, False),
+        ("validation", VALIDATION_SEED_MIN, True),
+        ("validation", VALIDATION_SEED_MIN - 1, False),
+        ("validation", 5, False),
+    ],
+)
 def test_each_purpose_has_its_own_seed_range(tmp_path: Path, purpose: str, seed: int, ok: bool) -> None:
     """Benchmark, training and validation scenes never share a seed: a model is neither trained nor
     selected on a scene it is scored on."""

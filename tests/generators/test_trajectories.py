@@ -15,8 +15,18 @@ from openreloc_bench import geometry
 
 SUITES = Path(__file__).resolve().parents[2] / "scenes"
 
-SPEC = SceneSpec(name="t", kind="multi-room", seed=21, rooms=3, objects_per_room=10, width=96, height=72,
-                 n_query=5, mapping_step_m=0.25, mapping_step_deg=15.0)
+SPEC = SceneSpec(
+    name="t",
+    kind="multi-room",
+    seed=21,
+    rooms=3,
+    objects_per_room=10,
+    width=96,
+    height=72,
+    n_query=5,
+    mapping_step_m=0.25,
+    mapping_step_deg=15.0,
+)
 
 
 @pytest.fixture(scope="module")

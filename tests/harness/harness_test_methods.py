@@ -96,8 +96,9 @@ def perturb(T: np.ndarray, name: str, noise_m: float, noise_deg: float) -> np.nd
 methods.register("test-oracle", NoisyOracle)
 
 
-def make_scene(root: Path, name: str, n_map: int = 4, n_query: int = 3, splits: tuple[str, ...] = ("query",),
-               seed: int = 0) -> Path:
+def make_scene(
+    root: Path, name: str, n_map: int = 4, n_query: int = 3, splits: tuple[str, ...] = ("query",), seed: int = 0
+) -> Path:
     """A tiny scene (32x24 random images with depth, instances and random poses in a 4 m room)."""
     rng = np.random.default_rng(seed)
     w = SceneWriter(root / name)
@@ -108,8 +109,14 @@ def make_scene(root: Path, name: str, n_map: int = 4, n_query: int = 3, splits: 
         for i in range(n):
             eye = np.array([rng.uniform(0, 4), rng.uniform(0, 4), 1.5])
             target = eye + np.array([np.cos(a := rng.uniform(0, 2 * np.pi)), np.sin(a), -0.2])
-            w.write_frame(split, i, rng.integers(0, 255, (24, 32, 3), dtype=np.uint8),
-                          np.full((24, 32), 2.0), rng.integers(0, 4, (24, 32)), geometry.look_at(eye, target))
+            w.write_frame(
+                split,
+                i,
+                rng.integers(0, 255, (24, 32, 3), dtype=np.uint8),
+                np.full((24, 32), 2.0),
+                rng.integers(0, 4, (24, 32)),
+                geometry.look_at(eye, target),
+            )
     return root / name
 
 

@@ -37,10 +37,12 @@ def _running(pid: int) -> bool:
 def test_pool_workers_exit_when_the_eval_is_killed() -> None:
     """SIGKILL the process running a pool: its worker, busy with a long job, exits within seconds
     instead of finishing the job (and writing results) for a run that was stopped."""
-    script = ("from openreloc_bench.harness.executors import LocalExecutor\n"
-              "from harness_test_methods import nap\n"
-              "for _, pid in LocalExecutor(1).map(nap, [0, 120]):\n"
-              "    print(pid, flush=True)\n")
+    script = (
+        "from openreloc_bench.harness.executors import LocalExecutor\n"
+        "from harness_test_methods import nap\n"
+        "for _, pid in LocalExecutor(1).map(nap, [0, 120]):\n"
+        "    print(pid, flush=True)\n"
+    )
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(Path(__file__).parent), os.environ.get("PYTHONPATH", "")])}
     proc = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, text=True, env=env)
     try:
@@ -72,8 +74,16 @@ def test_ray_gives_the_same_results_as_inline(data_dir: Path, tmp_path: Path) ->
     try:
         ray.init(num_cpus=2, include_dashboard=False)
         for name, executor in [("inline", "local"), ("ray", "ray")]:
-            cfg = EvalConfig(data=data_dir, out=tmp_path / name, scenes=["sA", "sB"], runs=runs, executor=executor,
-                             workers=2, timeout_s=0.0, plugins=["harness_test_methods"])
+            cfg = EvalConfig(
+                data=data_dir,
+                out=tmp_path / name,
+                scenes=["sA", "sB"],
+                runs=runs,
+                executor=executor,
+                workers=2,
+                timeout_s=0.0,
+                plugins=["harness_test_methods"],
+            )
             if name == "inline":
                 cfg.workers = 1
             assert runner.evaluate(cfg).errors == []

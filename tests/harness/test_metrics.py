@@ -71,8 +71,10 @@ def test_errors_match_evo_ape_from_tum_exports(tmp_path) -> None:
     ref = file_interface.read_tum_trajectory_file(str(tmp_path / "gt.tum"))
     traj = file_interface.read_tum_trajectory_file(str(tmp_path / "est.tum"))
     ours_t, ours_r = geometry.pose_errors(np.stack([gt[n] for n in names]), np.stack([est[n] for n in names]))
-    for relation, ours in [(evo_metrics.PoseRelation.translation_part, ours_t),
-                           (evo_metrics.PoseRelation.rotation_angle_deg, ours_r)]:
+    for relation, ours in [
+        (evo_metrics.PoseRelation.translation_part, ours_t),
+        (evo_metrics.PoseRelation.rotation_angle_deg, ours_r),
+    ]:
         ape = evo_metrics.APE(relation)
         ape.process_data((ref, traj))
         np.testing.assert_allclose(ape.error, ours, atol=1e-6)

@@ -23,8 +23,10 @@ def cfg(data: Path, out: Path, runs: list[MethodRun], **kw) -> EvalConfig:
 
 
 def test_eval_writes_poses_tum_tables_and_provenance(data_dir: Path, tmp_path: Path) -> None:
-    runs = [MethodRun("test-oracle", "test-oracle", {"noise_m": 0.1, "noise_deg": 2.0}),
-            MethodRun("nearest-frame", "nearest-frame")]
+    runs = [
+        MethodRun("test-oracle", "test-oracle", {"noise_m": 0.1, "noise_deg": 2.0}),
+        MethodRun("nearest-frame", "nearest-frame"),
+    ]
     report = runner.evaluate(cfg(data_dir, tmp_path, runs, splits=["query", "query_light1"]))
     assert report.errors == [] and report.maps_built == 4 and report.jobs_run == 8
     d = tmp_path / "runs" / "test-oracle" / "oracle-mask" / "sA"
@@ -33,9 +35,20 @@ def test_eval_writes_poses_tum_tables_and_provenance(data_dir: Path, tmp_path: P
     stamps, tum = read_tum_trajectory(d / "query.tum")
     np.testing.assert_allclose(tum, np.stack([poses[n] for n in sorted(poses)]), atol=1e-6)
     marker = io.read_json(d / "query.done.json")
-    assert marker["method_config"] == {"name": "test-oracle", "config": {
-        "noise_m": 0.1, "noise_deg": 2.0, "fail_on": "", "raise_on": "", "hang_on": "", "delay_s": 0.0,
-        "expect_track": "", "map_tag": "", "seed": 0}}
+    assert marker["method_config"] == {
+        "name": "test-oracle",
+        "config": {
+            "noise_m": 0.1,
+            "noise_deg": 2.0,
+            "fail_on": "",
+            "raise_on": "",
+            "hang_on": "",
+            "delay_s": 0.0,
+            "expect_track": "",
+            "map_tag": "",
+            "seed": 0,
+        },
+    }
     assert marker["track"] == "oracle-mask" and marker["spec_hash"] == "hash-sA-1" and marker["git_commit"]
     q = runner.load_run_queries(tmp_path)
     assert len(q) == 2 * 2 * 2 * 3
@@ -68,8 +81,9 @@ def test_maps_are_cached_by_config_and_spec(data_dir: Path, tmp_path: Path) -> N
 
 
 def test_raise_failure_and_hang_fail_one_query_each_and_the_run_goes_on(data_dir: Path, tmp_path: Path) -> None:
-    run = MethodRun("bad", "test-oracle", {"raise_on": "query/000000", "fail_on": "query/000001",
-                                           "hang_on": "query/000002"})
+    run = MethodRun(
+        "bad", "test-oracle", {"raise_on": "query/000000", "fail_on": "query/000001", "hang_on": "query/000002"}
+    )
     report = runner.evaluate(cfg(data_dir, tmp_path, [run], timeout_s=2.0))
     assert report.errors == [] and report.jobs_run == 2
     q = runner.load_run_queries(tmp_path).set_index(["scene", "query"])
@@ -81,8 +95,9 @@ def test_raise_failure_and_hang_fail_one_query_each_and_the_run_goes_on(data_dir
 
 
 def test_predicted_track_hides_instances(data_dir: Path, tmp_path: Path) -> None:
-    ok = runner.evaluate(cfg(data_dir, tmp_path, [MethodRun("p", "test-oracle", {"expect_track": "predicted"})],
-                             track="predicted"))
+    ok = runner.evaluate(
+        cfg(data_dir, tmp_path, [MethodRun("p", "test-oracle", {"expect_track": "predicted"})], track="predicted")
+    )
     assert ok.errors == []
     q = runner.load_run_queries(tmp_path)
     assert q["success"].all() and set(q["track"]) == {"predicted"}
@@ -144,8 +159,9 @@ def test_a_single_run_of_a_seeded_variant_is_not_pooled_as_one_more_seed(data_di
         (dict(runs=[MethodRun("x", "test-oracle", {"seed": 3})], seeds=[0, 1]), ConfigError, "sets seed 3"),
     ],
 )
-def test_bad_input_is_rejected_before_any_work(data_dir: Path, tmp_path: Path, change: dict, error: type,
-                                               match: str) -> None:
+def test_bad_input_is_rejected_before_any_work(
+    data_dir: Path, tmp_path: Path, change: dict, error: type, match: str
+) -> None:
     c = cfg(data_dir, tmp_path, [MethodRun("test-oracle", "test-oracle")])
     for k, v in change.items():
         setattr(c, k, v)

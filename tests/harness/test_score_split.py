@@ -6,8 +6,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from harness_test_methods import perturb
+
 from openreloc_bench.data.scene import Scene
 from openreloc_bench.harness.score import Outcome, score_split
 
@@ -15,8 +15,9 @@ from openreloc_bench.harness.score import Outcome, score_split
 def test_score_split_rows(data_dir: Path) -> None:
     seq = Scene(data_dir / "sA").sequence("query")
     n0, n1, n2 = seq.names
-    df = score_split(seq, {n0: Outcome(n0, perturb(seq.poses[0], n0, 0.2, 3.0), 0.5),
-                           n1: Outcome(n1, None, 0.1, "lost")})
+    df = score_split(
+        seq, {n0: Outcome(n0, perturb(seq.poses[0], n0, 0.2, 3.0), 0.5), n1: Outcome(n1, None, 0.1, "lost")}
+    )
     assert df["query"].tolist() == [n0, n1, n2]
     assert df["success"].tolist() == [True, False, False]
     assert df["reason"].tolist() == ["", "lost", "missing"]

@@ -16,13 +16,28 @@ MAPS = pd.DataFrame({"map_hash": ["h"], "scene": ["a"], "map_mb": [2.0], "mappin
 
 def queries(method: str, scene: str, split: str, t: list[float], r: list[float]) -> pd.DataFrame:
     n = len(t)
-    return pd.DataFrame({"method": method, "track": "oracle-mask", "scene": scene, "split": split, "config_hash": "h", "map_hash": "h",
-                         "spec_hash": "s", "git_commit": "c", "query": [f"{split}/{i:06d}" for i in range(n)],
-                         "t_err_m": t, "r_err_deg": r, "runtime_s": np.arange(1, n + 1, dtype=float)})
+    return pd.DataFrame(
+        {
+            "method": method,
+            "track": "oracle-mask",
+            "scene": scene,
+            "split": split,
+            "config_hash": "h",
+            "map_hash": "h",
+            "spec_hash": "s",
+            "git_commit": "c",
+            "query": [f"{split}/{i:06d}" for i in range(n)],
+            "t_err_m": t,
+            "r_err_deg": r,
+            "runtime_s": np.arange(1, n + 1, dtype=float),
+        }
+    )
 
 
 def test_scene_and_suite_tables_pool_queries() -> None:
-    q = pd.concat([queries("m", "a", "query", [0.1, 0.4], [1, 2]), queries("m", "b", "query", [math.inf, 0.2], [math.inf, 3])])
+    q = pd.concat(
+        [queries("m", "a", "query", [0.1, 0.4], [1, 2]), queries("m", "b", "query", [math.inf, 0.2], [math.inf, 3])]
+    )
     scenes, suite = build_tables(q, MAPS)
     assert scenes.set_index("scene").loc["a", "recall_25cm"] == 50.0
     row = suite.iloc[0]
@@ -33,8 +48,13 @@ def test_scene_and_suite_tables_pool_queries() -> None:
 
 def test_ablation_table_in_paper_layout() -> None:
     labels = [ablation_label(r) for r in (*ABLATION_ROWS, FULL_ROW)]
-    q = pd.concat([queries(lab, s, "query", [0.1, 0.3 if lab == "openreloc" else 0.6], [1, 2])
-                   for lab in labels for s in ("a", "b")])
+    q = pd.concat(
+        [
+            queries(lab, s, "query", [0.1, 0.3 if lab == "openreloc" else 0.6], [1, 2])
+            for lab in labels
+            for s in ("a", "b")
+        ]
+    )
     scenes, _ = build_tables(q, MAPS)
     md = paper_tables(scenes)["ablations_oracle-mask"]
     lines = md.splitlines()

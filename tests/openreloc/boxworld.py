@@ -85,8 +85,12 @@ def write_boxworld(root: Path, n_frames: int = 16, hw: tuple[int, int] = (48, 64
     K = geometry.intrinsics_from_fov(hw[1], hw[0], 70.0)
     writer = SceneWriter(root)
     writer.write_scene_info({"spec_hash": "boxworld", "seed": 0, "width": hw[1], "height": hw[0]})
-    writer.write_objects([ObjectInfo(id=b.id, category=b.category, structural=b.structural,
-                                     aabb=[list(b.lo), list(b.hi)]) for b in boxes])
+    writer.write_objects(
+        [
+            ObjectInfo(id=b.id, category=b.category, structural=b.structural, aabb=[list(b.lo), list(b.hi)])
+            for b in boxes
+        ]
+    )
     writer.write_intrinsics("mapping", K)
     for i, T in enumerate(camera_poses(n_frames)):
         rgb, depth, inst = render(boxes, K, T, hw)

@@ -102,7 +102,9 @@ def test_a_landmark_is_matched_at_most_once() -> None:
 
 
 def test_without_language_every_object_takes_its_visual_top1() -> None:
-    matches = associate([obj(unit(3), [0, 0, 5, 5]), obj(unit(2), [9, 0, 20, 5])], IDS, DESC, GRAPH, AssociationConfig())
+    matches = associate(
+        [obj(unit(3), [0, 0, 5, 5]), obj(unit(2), [9, 0, 20, 5])], IDS, DESC, GRAPH, AssociationConfig()
+    )
     assert [(m.landmark, m.how, m.text_sim) for m in matches] == [(5, "visual", None), (4, "visual", None)]
 
 

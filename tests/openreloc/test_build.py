@@ -6,13 +6,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from tests.openreloc.boxworld import MeanColorEncoder, NoisyMaskSegmenter, boxworld_sequence
 
 from openreloc_bench.cli import main
 from openreloc_bench.errors import ConfigError
 from openreloc_bench.openreloc import mapping
 from openreloc_bench.openreloc.build import MappingConfig, build_object_map
 from openreloc_bench.openreloc.map import ObjectMap
+from tests.openreloc.boxworld import MeanColorEncoder, NoisyMaskSegmenter, boxworld_sequence
 
 CFG = MappingConfig(fusion=mapping.FusionConfig(voxel_size=0.05))
 

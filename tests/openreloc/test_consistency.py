@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from tests.openreloc.boxworld import ROOM, render
 
 from openreloc_bench import geometry
 from openreloc_bench.openreloc.consistency import (
@@ -15,6 +14,7 @@ from openreloc_bench.openreloc.consistency import (
     consistency,
     query_labels,
 )
+from tests.openreloc.boxworld import ROOM, render
 
 HW = (240, 320)
 K = geometry.intrinsics_from_fov(HW[1], HW[0], 70.0)
@@ -47,8 +47,9 @@ def room() -> dict:
 def _score(room: dict, T_wc: np.ndarray, cfg: ConsistencyConfig | None = None) -> float:
     cfg = cfg or ConsistencyConfig(points_per_landmark=4000, stride=4)
     renderer = LabelRenderer(room["points"], HW[1], HW[0], cfg)
-    return consistency(renderer.render(T_wc, K), query_labels(room["masks"], cfg.stride),
-                       candidate_weights(room["similarity"], cfg))
+    return consistency(
+        renderer.render(T_wc, K), query_labels(room["masks"], cfg.stride), candidate_weights(room["similarity"], cfg)
+    )
 
 
 def test_true_pose_explains_most_of_the_segmentation(room: dict) -> None:
@@ -86,7 +87,9 @@ def test_nearest_landmark_wins_each_cell() -> None:
     for order in ([near, far], [far, near]):
         renderer = LabelRenderer(order, 64, 64, cfg)
         drawn = renderer.render(T, Kc)
-        assert drawn[drawn >= 0].tolist() == [next(r for r, p in enumerate(order) if p is near)]  # one cell, the near one
+        assert drawn[drawn >= 0].tolist() == [
+            next(r for r, p in enumerate(order) if p is near)
+        ]  # one cell, the near one
     behind = LabelRenderer([np.array([[0.0, 0.0, -2.0]])], 64, 64, cfg)
     assert (behind.render(T, Kc) < 0).all()
 

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from tests.openreloc.boxworld import MeanColorEncoder, boxworld_sequence
 
 from openreloc_bench.openreloc.descriptors import DescriptorConfig, compute_descriptors, pad_box, top_views
 from openreloc_bench.openreloc.reference_frames import Sightings
+from tests.openreloc.boxworld import MeanColorEncoder, boxworld_sequence
 
 
 def test_pad_box_grows_and_clips() -> None:
@@ -25,8 +25,13 @@ def test_descriptors_are_unit_means_of_crops(tmp_path) -> None:
     seq = boxworld_sequence(tmp_path, n_frames=4)
     h, w = seq.height, seq.width
     # landmark 1 seen in frames 0 and 1 on the left half, landmark 2 in frame 2
-    s = Sightings(np.array([0, 1, 2]), np.array([1, 1, 2]), np.array([0.5, 0.6, 0.7]), np.full(3, 50),
-                  np.float32([[0, 0, w // 2, h], [0, 0, w // 2, h], [w // 2, 0, w, h]]))
+    s = Sightings(
+        np.array([0, 1, 2]),
+        np.array([1, 1, 2]),
+        np.array([0.5, 0.6, 0.7]),
+        np.full(3, 50),
+        np.float32([[0, 0, w // 2, h], [0, 0, w // 2, h], [w // 2, 0, w, h]]),
+    )
     enc = MeanColorEncoder()
     desc, used = compute_descriptors(seq, s, [1, 2], enc, DescriptorConfig(padding=0.0), progress=False)
     assert used == {1: 2, 2: 1}

@@ -26,15 +26,23 @@ def make_map(n: int = 5, dim: int = 16, seed: int = 0) -> ObjectMap:
         pts = (rng.uniform(0, 1, (50, 3)) + [i, 0, 0]).astype(np.float32)
         d = rng.normal(size=dim).astype(np.float32)
         landmarks[i] = Landmark(
-            id=i, points=pts, box_min=pts.min(0), box_max=pts.max(0), center=pts.mean(0),
-            descriptor=d / np.linalg.norm(d), valid=i != n, category="wall" if i == n else f"cat{i}", n_views=i,
+            id=i,
+            points=pts,
+            box_min=pts.min(0),
+            box_max=pts.max(0),
+            center=pts.mean(0),
+            descriptor=d / np.linalg.norm(d),
+            valid=i != n,
+            category="wall" if i == n else f"cat{i}",
+            n_views=i,
         )
     T = np.eye(4)
     T[:3, 3] = [1, 2, 3]
     rfs = [
         ReferenceFrame(0, np.eye(4), {1: np.array([1, 2, 30, 40], np.float32)}, {1: 0.5}),
-        ReferenceFrame(7, T, {2: np.array([0, 0, 5, 5], np.float32), 3: np.array([5, 6, 7, 8], np.float32)},
-                       {2: 1.0, 3: 0.25}),
+        ReferenceFrame(
+            7, T, {2: np.array([0, 0, 5, 5], np.float32), 3: np.array([5, 6, 7, 8], np.float32)}, {2: 1.0, 3: 0.25}
+        ),
     ]
     g = nx.Graph()
     g.add_nodes_from(landmarks)
@@ -65,10 +73,17 @@ def test_round_trip(tmp_path: Path) -> None:
     np.testing.assert_allclose(r.reference_frames[1].boxes[3], [5, 6, 7, 8])
     assert r.reference_frames[1].visibility[3] == pytest.approx(0.25)
     assert {(min(u, v), max(u, v), d["kind"]) for u, v, d in r.graph.edges(data=True)} == {
-        (1, 2, "knn"), (2, 3, "overlap")}
+        (1, 2, "knn"),
+        (2, 3, "overlap"),
+    }
     assert set(r.graph.nodes) == set(m.landmarks)
-    assert (r.width, r.height, r.encoder, r.config, r.stats) == (64, 48, {"name": "test"}, {"voxel": 0.02},
-                                                                 {"frames_total": 9})
+    assert (r.width, r.height, r.encoder, r.config, r.stats) == (
+        64,
+        48,
+        {"name": "test"},
+        {"voxel": 0.02},
+        {"frames_total": 9},
+    )
 
 
 def test_save_is_deterministic_and_compact(tmp_path: Path) -> None:

@@ -6,12 +6,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from tests.openreloc.boxworld import ROOM, NoisyMaskSegmenter, boxworld_sequence
 
 from openreloc_bench.data import io
 from openreloc_bench.data.scene import ObjectInfo, Scene
 from openreloc_bench.errors import DataError
 from openreloc_bench.openreloc import mapping as M
+from tests.openreloc.boxworld import ROOM, NoisyMaskSegmenter, boxworld_sequence
 
 FUSION = M.FusionConfig(voxel_size=0.05)
 
@@ -20,7 +20,9 @@ FUSION = M.FusionConfig(voxel_size=0.05)
 def room(tmp_path_factory: pytest.TempPathFactory) -> tuple:
     seq = boxworld_sequence(tmp_path_factory.mktemp("room"), n_frames=16, hw=(96, 128))
     rec = M.fuse_tsdf(seq, FUSION, progress=False)
-    obs = M.observe(seq, rec.points, rec.usable, M.ObservationConfig(), NoisyMaskSegmenter(split_prob=0.0), progress=False)
+    obs = M.observe(
+        seq, rec.points, rec.usable, M.ObservationConfig(), NoisyMaskSegmenter(split_prob=0.0), progress=False
+    )
     return seq, rec, obs
 
 
@@ -102,8 +104,11 @@ def test_undersegmented_masks_are_dropped(room: tuple) -> None:
     obs2[obs.index(o)].masks = others + [merged]  # the two objects' masks replaced by one
     cfg = M.ClusteringConfig()
     masks = [(f, m) for f, ob in enumerate(obs2) for m in ob.masks if len(m) >= cfg.min_mask_points]
-    Mx = M._incidence(np.concatenate([np.full(len(m), k) for k, (_, m) in enumerate(masks)]),
-                      np.concatenate([obs2[f].point_idx[m] for f, m in masks]), (len(masks), len(rec.points)))
+    Mx = M._incidence(
+        np.concatenate([np.full(len(m), k) for k, (_, m) in enumerate(masks)]),
+        np.concatenate([obs2[f].point_idx[m] for f, m in masks]),
+        (len(masks), len(rec.points)),
+    )
     _, _, keep = M._mask_frame_stats(Mx, np.array([f for f, _ in masks]), len(obs2), cfg)
     k = next(k for k, (_, m) in enumerate(masks) if m is merged)
     assert not keep[k] and keep.mean() > 0.8
@@ -117,13 +122,15 @@ def test_box_point_labels_prefer_the_smallest_box_and_absorb_surface_noise() -> 
         2: ObjectInfo(2, "table", aabb=[[0, 0, 0], [1, 1, 0.8]]),
         3: ObjectInfo(3, "lamp", aabb=[[0.4, 0.4, 0.8], [0.6, 0.6, 1.2]]),
     }
-    pts = np.array([
-        [-1, -1, 0.01],   # floor with surface noise above it: only within the margin of the floor
-        [0.5, 0.5, 0.79],  # table top
-        [0.5, 0.5, 0.81],  # lamp base (inside the table box's margin too: the strict lamp box wins)
-        [0.5, 0.5, -0.005],  # floor under the table: strictly inside the floor only
-        [3, 3, 3],        # nowhere
-    ])
+    pts = np.array(
+        [
+            [-1, -1, 0.01],  # floor with surface noise above it: only within the margin of the floor
+            [0.5, 0.5, 0.79],  # table top
+            [0.5, 0.5, 0.81],  # lamp base (inside the table box's margin too: the strict lamp box wins)
+            [0.5, 0.5, -0.005],  # floor under the table: strictly inside the floor only
+            [3, 3, 3],  # nowhere
+        ]
+    )
     np.testing.assert_array_equal(M.box_point_labels(pts, objects, 0.03), [1, 2, 3, 1, 0])
 
 

@@ -9,7 +9,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 from threadpoolctl import threadpool_info, threadpool_limits
-from tests.openreloc.boxworld import ROOM, MeanColorEncoder, camera_poses, render, write_boxworld
 
 from openreloc_bench import geometry
 from openreloc_bench.data.scene import Scene
@@ -21,6 +20,7 @@ from openreloc_bench.openreloc.map import ObjectMap
 from openreloc_bench.openreloc.method import choose_hypothesis, verification_evidence
 from openreloc_bench.openreloc.refine import RefineResult
 from openreloc_bench.vision.base import register_encoder
+from tests.openreloc.boxworld import ROOM, MeanColorEncoder, camera_poses, render, write_boxworld
 
 register_encoder("mean-color")(MeanColorEncoder)
 HW = (96, 128)
@@ -73,9 +73,11 @@ def test_localizes_a_held_out_view_with_diagnostics(map_dir: Path) -> None:
     assert " m " in d["explanation"]
 
 
-@pytest.mark.xfail(reason="not a refinement problem (occlusion is covered by test_refine): this map loses the "
-                   "table and the box on it (mapping: 8 of 9 instances), so 2 of the view's 3 furniture objects "
-                   "have no landmark and the mean-colour test encoder matches them to walls")
+@pytest.mark.xfail(
+    reason="not a refinement problem (occlusion is covered by test_refine): this map loses the "
+    "table and the box on it (mapping: 8 of 9 instances), so 2 of the view's 3 furniture objects "
+    "have no landmark and the mean-colour test encoder matches them to walls"
+)
 def test_held_out_view_is_within_25cm(map_dir: Path) -> None:
     q, T_gt = held_out_query()
     res = localizer(map_dir).localize(q)
@@ -91,9 +93,16 @@ def test_no_refine_returns_the_reference_frame_pose(map_dir: Path) -> None:
     assert np.allclose(res.T_wc, np.array(res.diagnostics["prior_T_wc"]), atol=1e-5)
 
 
-@pytest.mark.parametrize("override", [{"no_coarse": True}, {"no_scene_graph": True},
-                                      {"retrieval": "visibility"}, {"no_filtering": True},
-                                      {"verification": {"enabled": False}}])
+@pytest.mark.parametrize(
+    "override",
+    [
+        {"no_coarse": True},
+        {"no_scene_graph": True},
+        {"retrieval": "visibility"},
+        {"no_filtering": True},
+        {"verification": {"enabled": False}},
+    ],
+)
 def test_ablation_switches_run(map_dir: Path, override: dict) -> None:
     q, _ = held_out_query()
     res = localizer(map_dir, **override, refinement={"max_iterations": 20}).localize(q)
@@ -115,10 +124,14 @@ def test_the_place_prior_ranks_the_verification_candidates(map_dir: Path, monkey
     seen: dict[str, object] = {}
     associate, verify = method_module.associate, method_module.verify_matches
     monkeypatch.setattr(method_module, "associate", lambda *a, **k: seen.setdefault("matches", associate(*a, **k)))
-    monkeypatch.setattr(method_module, "verify_matches",
-                        lambda evidence, *a, **k: verify(seen.setdefault("evidence", evidence), *a, **k))
-    m = localizer(map_dir, refinement={"max_iterations": 5}, verification={"place_frames": 2,
-                                                                            "place_keeps_choice": keeps_choice})
+    monkeypatch.setattr(
+        method_module,
+        "verify_matches",
+        lambda evidence, *a, **k: verify(seen.setdefault("evidence", evidence), *a, **k),
+    )
+    m = localizer(
+        map_dir, refinement={"max_iterations": 5}, verification={"place_frames": 2, "place_keeps_choice": keeps_choice}
+    )
     ranking = m._place_ranking
     monkeypatch.setattr(m, "_place_ranking", lambda *a: seen.setdefault("scores", ranking(*a)))
     m.localize(held_out_query()[0])
@@ -136,8 +149,7 @@ def test_the_verification_draws_with_the_maps_covisibility(map_dir: Path, monkey
     """The RANSAC's guided sampling gets which landmark pairs some reference frame sees together."""
     seen: dict[str, object] = {}
     verify = method_module.verify_matches
-    monkeypatch.setattr(method_module, "verify_matches",
-                        lambda *a, **k: verify(*a, **seen.setdefault("kwargs", k)))
+    monkeypatch.setattr(method_module, "verify_matches", lambda *a, **k: verify(*a, **seen.setdefault("kwargs", k)))
     m = localizer(map_dir, refinement={"max_iterations": 5})
     m.localize(held_out_query()[0])
     covisible, frames = seen["kwargs"]["covisible"], m.frame_visibility
@@ -162,12 +174,15 @@ def test_the_best_explained_hypothesis_wins(map_dir: Path) -> None:
     assert next(h for h in hyps if h["source"] == off.diagnostics["chosen"])["loss"] == lowest
 
 
-@pytest.mark.parametrize(("losses", "explained", "tie", "expected"), [
-    ([5.0, 1.0, 3.0], [4.0, 2.0, 3.9], 0.1, 2),   # the low-loss pose explains too little; of the ties, lower loss
-    ([5.0, 1.0, 3.0], [4.0, 2.0, 3.9], 0.0, 0),   # no ties: the best explained
-    ([5.0, 1.0, 3.0], [4.0, 2.0, 3.9], 1.0, 1),   # everything ties: the lowest loss (the paper's choice)
-    ([float("nan"), 2.0], [9.0, 1.0], 0.1, 1),     # a diverged hypothesis never wins
-])
+@pytest.mark.parametrize(
+    ("losses", "explained", "tie", "expected"),
+    [
+        ([5.0, 1.0, 3.0], [4.0, 2.0, 3.9], 0.1, 2),  # the low-loss pose explains too little; of the ties, lower loss
+        ([5.0, 1.0, 3.0], [4.0, 2.0, 3.9], 0.0, 0),  # no ties: the best explained
+        ([5.0, 1.0, 3.0], [4.0, 2.0, 3.9], 1.0, 1),  # everything ties: the lowest loss (the paper's choice)
+        ([float("nan"), 2.0], [9.0, 1.0], 0.1, 1),  # a diverged hypothesis never wins
+    ],
+)
 def test_choose_hypothesis(losses: list[float], explained: list[float], tie: float, expected: int) -> None:
     assert choose_hypothesis(losses, explained, tie) == expected
 
@@ -184,7 +199,9 @@ def test_language_modality_uses_the_describer(map_dir: Path) -> None:
     inner = m.encoder.encode_texts
     m.encoder.encode_texts = lambda batch: texts.extend(batch) or inner(batch)
     again = m.localize(q)
-    assert texts == [] and [x["phrase"] for x in again.diagnostics["matches"]] == [x["phrase"] for x in res.diagnostics["matches"]]
+    assert texts == [] and [x["phrase"] for x in again.diagnostics["matches"]] == [
+        x["phrase"] for x in res.diagnostics["matches"]
+    ]
 
 
 def test_bad_inputs_are_failures_with_reasons(map_dir: Path) -> None:
@@ -252,7 +269,9 @@ def test_oracle_association_diagnostic_matches_by_instance_id(map_dir: Path) -> 
 def test_a_restart_replaces_the_chosen_pose_only_with_a_lower_loss(map_dir: Path, monkeypatch, start: str) -> None:
     q, T_gt = oracle_query()
     oracle = {"oracle": True}
-    plain = localizer(map_dir, association=oracle, refinement={"max_iterations": 10, "restart_degrees": 0.0}).localize(q)
+    plain = localizer(map_dir, association=oracle, refinement={"max_iterations": 10, "restart_degrees": 0.0}).localize(
+        q
+    )
     far = geometry.look_at([3.0, 3.0, 2.5], [6.0, 6.0, 2.5])  # sees none of the matched objects
     monkeypatch.setattr(method_module, "orbit_starts", lambda T, pivot, degrees: [T_gt if start == "truth" else far])
     res = localizer(map_dir, association=oracle, refinement={"max_iterations": 10}).localize(q)
@@ -267,13 +286,17 @@ def test_a_restart_replaces_the_chosen_pose_only_with_a_lower_loss(map_dir: Path
         np.testing.assert_array_equal(res.T_wc, plain.T_wc)
 
 
-@pytest.mark.parametrize("hop_losses, hop_outliers, wins", [
-    ({1: 5.0, 2: 5.0, 3: 8.0}, [], True),
-    ({1: 5.0, 2: 5.0, 3: 100.0}, [3], False),  # lower only by leaving a third object out of its own mean
-    ({1: 9.5, 2: 9.5, 3: 9.5}, [], False),  # lower by less than the margin: the valley is flat
-])
-def test_a_restart_is_judged_on_the_objects_the_pose_counted(map_dir: Path, monkeypatch, hop_losses: dict,
-                                                              hop_outliers: list, wins: bool) -> None:
+@pytest.mark.parametrize(
+    "hop_losses, hop_outliers, wins",
+    [
+        ({1: 5.0, 2: 5.0, 3: 8.0}, [], True),
+        ({1: 5.0, 2: 5.0, 3: 100.0}, [3], False),  # lower only by leaving a third object out of its own mean
+        ({1: 9.5, 2: 9.5, 3: 9.5}, [], False),  # lower by less than the margin: the valley is flat
+    ],
+)
+def test_a_restart_is_judged_on_the_objects_the_pose_counted(
+    map_dir: Path, monkeypatch, hop_losses: dict, hop_outliers: list, wins: bool
+) -> None:
     def result(losses: dict, outliers: list) -> RefineResult:
         kept = [v for k, v in losses.items() if k not in outliers]
         return RefineResult(np.eye(4), sum(kept) / len(kept), math.nan, losses, outliers)
@@ -282,7 +305,9 @@ def test_a_restart_is_judged_on_the_objects_the_pose_counted(map_dir: Path, monk
     hop = result(hop_losses, hop_outliers)
     monkeypatch.setattr(method_module, "refine_poses", lambda *args, **kwargs: [hop])
     m = localizer(map_dir)
-    matches = [Match(query=i, landmark=lid, visual_sim=1.0, text_sim=None, how="oracle") for i, lid in enumerate(m.ids[:3])]
+    matches = [
+        Match(query=i, landmark=lid, visual_sim=1.0, text_sim=None, how="oracle") for i, lid in enumerate(m.ids[:3])
+    ]
     objects = [QueryObject(mask=np.ones(HW, bool), box=np.array([0, 0, HW[1], HW[0]]), visual=np.zeros(3))] * 3
     diag: dict = {}
     chosen = m._hop(before, matches, [0, 1, 2], objects, np.eye(3), np.zeros(HW, bool), diag)
@@ -299,8 +324,9 @@ def test_no_coarse_refines_only_the_uninformed_start(map_dir: Path) -> None:
 def test_paper_literal_coarse_stage_has_one_hypothesis(map_dir: Path) -> None:
     q, _ = held_out_query()
     # the paper has no verification stage, whose pose would be a second hypothesis
-    res = localizer(map_dir, coarse={"top_frames": 1, "pnp": False}, verification={"enabled": False},
-                    no_refine=True).localize(q)
+    res = localizer(
+        map_dir, coarse={"top_frames": 1, "pnp": False}, verification={"enabled": False}, no_refine=True
+    ).localize(q)
     assert isinstance(res, PoseEstimate) and "hypotheses" not in res.diagnostics
     assert res.diagnostics["chosen"] == f"reference:{res.diagnostics['reference_frame']['index']}"
 
@@ -309,9 +335,12 @@ def test_paper_literal_coarse_stage_has_one_hypothesis(map_dir: Path) -> None:
 def test_the_verified_pose_is_a_hypothesis_unless_switched_off(map_dir: Path, hypothesis: bool) -> None:
     q, _ = held_out_query()
     # fitted_triples 0: this view's further modes are the raw P3P poses' consensus sets (as below)
-    res = localizer(map_dir, coarse={"top_frames": 1, "pnp": False},
-                    verification={"hypothesis": hypothesis, "fitted_triples": 0},
-                    refinement={"max_iterations": 5}).localize(q)
+    res = localizer(
+        map_dir,
+        coarse={"top_frames": 1, "pnp": False},
+        verification={"hypothesis": hypothesis, "fitted_triples": 0},
+        refinement={"max_iterations": 5},
+    ).localize(q)
     assert isinstance(res, PoseEstimate), res
     assert res.diagnostics["verification"]["inliers"] >= 3  # verified matches are used either way
     frame = f"reference:{res.diagnostics['reference_frame']['index']}"
@@ -332,7 +361,9 @@ def test_further_verification_modes_compete_with_their_own_matches(map_dir: Path
     monkeypatch.setattr(method_module, "choose_hypothesis", lambda losses, explained, tie: len(losses) - 1)
     # this view has three distinct consistent sets of three among the raw P3P poses (a box-fitted pose of
     # one set lies within a metre of another's raw pose and takes its place: fitted_triples 0)
-    res = localizer(map_dir, verification={"modes": 3, "fitted_triples": 0}, refinement={"max_iterations": 5}).localize(q)
+    res = localizer(map_dir, verification={"modes": 3, "fitted_triples": 0}, refinement={"max_iterations": 5}).localize(
+        q
+    )
     assert isinstance(res, PoseEstimate), res
     modes = res.diagnostics["verification"]["modes"]
     assert modes == 3
@@ -345,15 +376,20 @@ def test_further_verification_modes_compete_with_their_own_matches(map_dir: Path
 
 
 @pytest.mark.parametrize("render_and_compare", [True, False])
-def test_only_the_further_modes_that_render_closest_are_refined(map_dir: Path, monkeypatch,
-                                                                 render_and_compare: bool) -> None:
+def test_only_the_further_modes_that_render_closest_are_refined(
+    map_dir: Path, monkeypatch, render_and_compare: bool
+) -> None:
     q, _ = held_out_query()
     # a drawing that prefers later poses: the screen must keep the last mode, not the RANSAC's next best
-    monkeypatch.setattr(method_module.OpenReLoc, "_explainer",
-                        lambda *_: lambda poses: [float(i) for i in range(len(poses))])
-    res = localizer(map_dir, verification={"modes": 3, "refined_modes": 2, "fitted_triples": 0},  # three modes, as above
-                    refinement={"max_iterations": 5},
-                    consistency={"enabled": render_and_compare}).localize(q)
+    monkeypatch.setattr(
+        method_module.OpenReLoc, "_explainer", lambda *_: lambda poses: [float(i) for i in range(len(poses))]
+    )
+    res = localizer(
+        map_dir,
+        verification={"modes": 3, "refined_modes": 2, "fitted_triples": 0},  # three modes, as above
+        refinement={"max_iterations": 5},
+        consistency={"enabled": render_and_compare},
+    ).localize(q)
     assert isinstance(res, PoseEstimate), res
     assert res.diagnostics["verification"]["modes"] == 3
     sources = [h["source"] for h in res.diagnostics["hypotheses"]]
@@ -404,8 +440,12 @@ def test_oracle_association_diagnostic_is_registered_and_keeps_other_overrides()
 
 def test_map_config_ignores_query_time_settings() -> None:
     base = create_method("openreloc").map_config()
-    for query_time in ({"no_refine": True}, {"verification": {"enabled": False}}, {"coarse": {"top_frames": 1}},
-                       {"segmenter": "noisy-gt"}):
+    for query_time in (
+        {"no_refine": True},
+        {"verification": {"enabled": False}},
+        {"coarse": {"top_frames": 1}},
+        {"segmenter": "noisy-gt"},
+    ):
         assert create_method("openreloc", **query_time).map_config() == base
     assert create_method("openreloc", mapping={"fusion": {"voxel_size": 0.05}}).map_config() != base
     assert create_method("openreloc", encoder_options={"weights": "elsewhere"}).map_config() != base

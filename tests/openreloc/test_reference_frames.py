@@ -31,13 +31,16 @@ def test_visibility_and_box_of_seen_points() -> None:
 
 
 def test_frames_kept_for_new_landmarks_and_doubled_visibility() -> None:
-    s = sightings([
-        (0, 1, 0.2),              # new landmark 1 -> keep
-        (1, 1, 0.3),              # 1.5x -> skip
-        (2, 1, 0.45),             # 2.25x of 0.2 -> keep
-        (3, 1, 0.5), (3, 2, 0.1),  # new landmark 2 -> keep, records both boxes
-        (4, 2, 0.15),             # 1.5x -> skip
-    ])
+    s = sightings(
+        [
+            (0, 1, 0.2),  # new landmark 1 -> keep
+            (1, 1, 0.3),  # 1.5x -> skip
+            (2, 1, 0.45),  # 2.25x of 0.2 -> keep
+            (3, 1, 0.5),
+            (3, 2, 0.1),  # new landmark 2 -> keep, records both boxes
+            (4, 2, 0.15),  # 1.5x -> skip
+        ]
+    )
     poses = np.tile(np.eye(4), (5, 1, 1))
     rfs = select_reference_frames(s, poses, ReferenceFrameConfig())
     assert [rf.index for rf in rfs] == [0, 2, 3]

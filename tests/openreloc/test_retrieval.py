@@ -73,11 +73,20 @@ def test_ranked_lists_every_sharing_frame_most_shared_first() -> None:
 
 
 # landmarks 0-1: a chair and a lamp in room A; 2-3: their look-alikes in room B; 4: a wall (-inf: not matchable)
-PLACE_SCORES = np.array([[0.90, 0.30, 0.92, 0.30, -np.inf],   # the chair: its room-B twin looks a little more alike
-                         [0.20, 0.80, 0.20, 0.70, -np.inf]])  # the lamp: room A's is clearly its own
-PLACE_VISIBLE = np.array([[1, 1, 0, 0, 1],    # a frame of room A
-                          [0, 0, 1, 1, 1],    # a frame of room B
-                          [0, 0, 1, 0, 0]], bool)  # room B's chair alone
+PLACE_SCORES = np.array(
+    [
+        [0.90, 0.30, 0.92, 0.30, -np.inf],  # the chair: its room-B twin looks a little more alike
+        [0.20, 0.80, 0.20, 0.70, -np.inf],
+    ]
+)  # the lamp: room A's is clearly its own
+PLACE_VISIBLE = np.array(
+    [
+        [1, 1, 0, 0, 1],  # a frame of room A
+        [0, 0, 1, 1, 1],  # a frame of room B
+        [0, 0, 1, 0, 0],
+    ],
+    bool,
+)  # room B's chair alone
 
 
 @pytest.mark.parametrize(("frames", "expected"), [(1, [1, 1, 0, 0, 1]), (2, [1, 1, 1, 1, 1]), (0, [0, 0, 0, 0, 0])])
@@ -91,9 +100,13 @@ def test_place_landmarks_bound_what_one_object_costs_a_frame() -> None:
     """Room A's frame sees the chair's and the lamp's own landmarks but not a third object's (0.6 short);
     room B's sees the third object's and is 0.15 short on the chair and the lamp. Each object costs a
     frame at most 0.2, so the frame explaining two objects outright wins (unbounded, B would: 0.3 < 0.6)."""
-    scores = np.array([[0.90, 0.30, 0.75, 0.30, -np.inf, 0.0],
-                       [0.20, 0.80, 0.20, 0.65, -np.inf, 0.0],
-                       [0.10, 0.10, 0.10, 0.10, -np.inf, 0.7]])
+    scores = np.array(
+        [
+            [0.90, 0.30, 0.75, 0.30, -np.inf, 0.0],
+            [0.20, 0.80, 0.20, 0.65, -np.inf, 0.0],
+            [0.10, 0.10, 0.10, 0.10, -np.inf, 0.7],
+        ]
+    )
     visible = np.array([[1, 1, 0, 0, 1, 0], [0, 0, 1, 1, 1, 1]], bool)
     np.testing.assert_array_equal(place_landmarks(scores, visible, 1), [1, 1, 0, 0, 1, 0])
     np.testing.assert_array_equal(place_landmarks(scores, visible, 1, clip=1.0), [0, 0, 1, 1, 1, 1])

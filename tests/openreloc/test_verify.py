@@ -6,7 +6,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
-from tests.openreloc.boxworld import Box, render
 
 from openreloc_bench import geometry
 from openreloc_bench.openreloc.verify import (
@@ -18,6 +17,7 @@ from openreloc_bench.openreloc.verify import (
     fit_boxes,
     verify_matches,
 )
+from tests.openreloc.boxworld import Box, render
 
 HW = (240, 320)
 K = geometry.intrinsics_from_fov(HW[1], HW[0], 70.0)
@@ -31,13 +31,17 @@ def _boxes(rng: np.random.Generator, n: int, centre: tuple[float, float], spread
         size = rng.uniform(0.3, 0.7, 3)
         lo = c - size / 2
         lo[2] = rng.uniform(0.0, 0.8)
-        out.append(Box(first_id + i, "thing", tuple(lo), tuple(lo + size), tuple(int(x) for x in rng.integers(50, 250, 3))))
+        out.append(
+            Box(first_id + i, "thing", tuple(lo), tuple(lo + size), tuple(int(x) for x in rng.integers(50, 250, 3)))
+        )
     return out
 
 
 def _landmark_arrays(boxes: list[Box]) -> tuple[np.ndarray, np.ndarray]:
-    corners = [np.array([[x, y, z] for x in (b.lo[0], b.hi[0]) for y in (b.lo[1], b.hi[1]) for z in (b.lo[2], b.hi[2])])
-               for b in boxes]
+    corners = [
+        np.array([[x, y, z] for x in (b.lo[0], b.hi[0]) for y in (b.lo[1], b.hi[1]) for z in (b.lo[2], b.hi[2])])
+        for b in boxes
+    ]
     return np.array([c.mean(0) for c in corners]), np.array([extreme_points(c) for c in corners])
 
 
@@ -70,8 +74,9 @@ def _evidence(world: dict, true_rank: list[int], with_truth: bool = True) -> tup
 
 @pytest.mark.parametrize("true_rank", [[0], [0, 1, 2], [1, 3, 0, 2, 4]])
 @pytest.mark.parametrize(("box_fit", "max_m", "max_deg"), [(True, 0.2, 4.0), (False, 0.5, 10.0)])
-def test_recovers_the_true_matches_and_pose(world: dict, true_rank: list[int], box_fit: bool, max_m: float,
-                                            max_deg: float) -> None:
+def test_recovers_the_true_matches_and_pose(
+    world: dict, true_rank: list[int], box_fit: bool, max_m: float, max_deg: float
+) -> None:
     evidence, truth = _evidence(world, true_rank)
     assert len(evidence) >= 5
     res = verify_matches(evidence, world["centers"], world["extremes"], K, VerifyConfig(samples=300, box_fit=box_fit))
@@ -89,8 +94,9 @@ def test_the_likeliest_triples_poses_fitted_to_their_boxes_compete(world: dict) 
     evidence, _ = _evidence(world, [0])
     errors = {}
     for fitted in (0, 64):
-        res = verify_matches(evidence, world["centers"], world["extremes"], K,
-                             VerifyConfig(samples=100, refits=0, fitted_triples=fitted))
+        res = verify_matches(
+            evidence, world["centers"], world["extremes"], K, VerifyConfig(samples=100, refits=0, fitted_triples=fitted)
+        )
         assert res is not None
         errors[fitted] = geometry.pose_errors(T_WC, res.T_wc)[0]
     assert errors[64] < 0.05 < 0.15 < errors[0]
@@ -99,8 +105,11 @@ def test_the_likeliest_triples_poses_fitted_to_their_boxes_compete(world: dict) 
 @pytest.mark.parametrize("eye", [(0.0, -3.0, 1.5), (0.8, -1.6, 1.5)])  # all boxes inside; one cut by the border
 def test_fit_boxes_recovers_the_pose_from_exact_boxes(eye: tuple[float, float, float]) -> None:
     rng = np.random.default_rng(0)
-    corners = [np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)]) * rng.uniform(0.3, 0.8, 3)
-               + rng.uniform([-1.5, -0.5, 0.0], [1.5, 1.5, 0.8]) for _ in range(5)]
+    corners = [
+        np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)]) * rng.uniform(0.3, 0.8, 3)
+        + rng.uniform([-1.5, -0.5, 0.0], [1.5, 1.5, 0.8])
+        for _ in range(5)
+    ]
     extremes = np.array([extreme_points(c) for c in corners])
     w, h = 640, 480
     Kw = geometry.intrinsics_from_fov(w, h, 60.0)
@@ -159,10 +168,14 @@ def test_further_modes_leave_the_best_as_it_was_and_are_distinct_consensus_sets(
 def test_overlaps_are_the_boxes_of_the_projected_extreme_points(world: dict, chunk: int) -> None:
     evidence, _ = _evidence(world, [0, 1, 2])
     cfg = VerifyConfig(min_iou=0.0, rank_weight=1.0)
-    table = _CandidateTable(evidence, list(range(len(evidence))), cfg.candidates, world["centers"], world["extremes"], K, cfg)
+    table = _CandidateTable(
+        evidence, list(range(len(evidence))), cfg.candidates, world["centers"], world["extremes"], K, cfg
+    )
     rng = np.random.default_rng(1)
-    poses = [geometry.invert(T_WC)] + [geometry.invert(geometry.look_at(rng.uniform(-3, 3, 3) + [0, -3, 1.5],
-                                                                        rng.uniform(-1, 1, 3))) for _ in range(20)]
+    poses = [geometry.invert(T_WC)] + [
+        geometry.invert(geometry.look_at(rng.uniform(-3, 3, 3) + [0, -3, 1.5], rng.uniform(-1, 1, 3)))
+        for _ in range(20)
+    ]
     R, t = np.stack([T[:3, :3] for T in poses]), np.stack([T[:3, 3] for T in poses])
     got = table.overlaps(R, t, chunk)
     for k in range(len(poses)):  # one pose and one candidate at a time, the obvious way
@@ -204,7 +217,9 @@ def test_of_two_equally_consistent_sets_the_higher_ranked_candidates_win(world: 
     twins = [Box(b.id + 1000, b.category, tuple(b.lo + offset), tuple(b.hi + offset), b.color) for b in visible]
     centers, extremes = _landmark_arrays(visible + twins)
     n = len(visible)
-    evidence = [ObjectEvidence(world["masks"][b.id], [i + n, i] if twin_first else [i, i + n]) for i, b in enumerate(visible)]
+    evidence = [
+        ObjectEvidence(world["masks"][b.id], [i + n, i] if twin_first else [i, i + n]) for i, b in enumerate(visible)
+    ]
     res = verify_matches(evidence, centers, extremes, K, VerifyConfig(samples=300))
     assert res is not None
     assert res.assignment == {i: i + n if twin_first else i for i in range(n)}
@@ -217,8 +232,9 @@ def _right_share(world: dict, weight: float, covisible: np.ndarray | None) -> fl
     """Share of 4,000 drawn triples whose three candidates are all true, the truth ranked third everywhere."""
     evidence, truth = _evidence(world, [2])
     cfg = VerifyConfig(covisible_weight=weight)
-    table = _CandidateTable(evidence, list(range(len(evidence))), cfg.candidates, world["centers"], world["extremes"],
-                            K, cfg)
+    table = _CandidateTable(
+        evidence, list(range(len(evidence))), cfg.candidates, world["centers"], world["extremes"], K, cfg
+    )
     objs, flat = draw_triples(table, 4000, np.random.default_rng(0), covisible)
     return float((table.rows[flat] == np.asarray(truth)[objs]).all(1).mean())
 

@@ -13,7 +13,9 @@ from openreloc_bench.vision.testing import tiny_clip_checkpoint
 
 def _crops(n: int, seed: int = 0) -> list[np.ndarray]:
     rng = np.random.default_rng(seed)
-    return [rng.integers(0, 256, (int(rng.integers(5, 60)), int(rng.integers(5, 60)), 3), dtype=np.uint8) for _ in range(n)]
+    return [
+        rng.integers(0, 256, (int(rng.integers(5, 60)), int(rng.integers(5, 60)), 3), dtype=np.uint8) for _ in range(n)
+    ]
 
 
 def test_shapes_norms_and_dtype(clip_encoder) -> None:
@@ -45,7 +47,12 @@ def test_batching_equals_single_and_is_deterministic(clip_encoder) -> None:
 
 
 def test_grey_black_float_and_rgba_crops(clip_encoder) -> None:
-    crops = [np.zeros((10, 10), np.uint8), np.zeros((10, 10, 3), np.uint8), np.ones((10, 10, 3), np.float32), np.zeros((10, 10, 4), np.uint8)]
+    crops = [
+        np.zeros((10, 10), np.uint8),
+        np.zeros((10, 10, 3), np.uint8),
+        np.ones((10, 10, 3), np.float32),
+        np.zeros((10, 10, 4), np.uint8),
+    ]
     x = clip_encoder.encode_images(crops)
     assert np.all(np.isfinite(x))
     np.testing.assert_allclose(x[0], x[1], atol=1e-6)  # grey zeros == black RGB

@@ -3,10 +3,9 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+from vision_scenes import write_shapes_scene
 
 from openreloc_bench.vision.crops import CropSet, crops_from_scenes, scene_crops
-
-from vision_scenes import write_shapes_scene
 
 
 def test_scene_crops_labels_and_structural_filter(tmp_path: Path) -> None:
@@ -26,7 +25,9 @@ def test_scene_crops_labels_and_structural_filter(tmp_path: Path) -> None:
 
 def test_views_cap_min_area_save_load_concat(tmp_path: Path) -> None:
     roots = [write_shapes_scene(tmp_path / f"s{i}", seed=i, frames=4) for i in range(2)]
-    c = crops_from_scenes(roots, progress=False, splits=["mapping"], min_area=20, max_views_per_object=2, rng=np.random.default_rng(0))
+    c = crops_from_scenes(
+        roots, progress=False, splits=["mapping"], min_area=20, max_views_per_object=2, rng=np.random.default_rng(0)
+    )
     assert len(c) == 2 * 4 * 2
     assert len(set(c.instance_keys)) == 8
     assert len(scene_crops(roots[0], min_area=10**6)) == 0

@@ -5,9 +5,9 @@ import json
 import re
 import threading
 import time
+from collections.abc import Iterator
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
-from typing import Iterator
 
 import cv2
 import numpy as np
@@ -142,7 +142,9 @@ class _Server:
                     return
                 if outer.mode == "slow":
                     time.sleep(3.0)
-                reply = json.dumps({"choices": [{"message": {"role": "assistant", "content": " A red leather armchair.\n"}}]}).encode()
+                reply = json.dumps(
+                    {"choices": [{"message": {"role": "assistant", "content": " A red leather armchair.\n"}}]}
+                ).encode()
                 try:
                     self.send_response(200)
                     self.send_header("Content-Type", "application/json")
@@ -171,8 +173,14 @@ def server() -> Iterator[_Server]:
 
 def _openai(server_url: str, tmp_path: Path, clip_encoder, **kw):
     return create_describer(
-        "openai", base_url=server_url, api_key="sk-test", model="vlm-test", cache_dir=tmp_path / "cache",
-        encoder=clip_encoder, backoff_s=0.01, **kw,
+        "openai",
+        base_url=server_url,
+        api_key="sk-test",
+        model="vlm-test",
+        cache_dir=tmp_path / "cache",
+        encoder=clip_encoder,
+        backoff_s=0.01,
+        **kw,
     )
 
 
@@ -200,7 +208,9 @@ def test_openai_success_request_format_and_cache(server: _Server, tmp_path: Path
     assert len(server.requests) == 2
 
 
-def test_openai_500_retries_then_falls_back(server: _Server, tmp_path: Path, clip_encoder, caplog: pytest.LogCaptureFixture) -> None:
+def test_openai_500_retries_then_falls_back(
+    server: _Server, tmp_path: Path, clip_encoder, caplog: pytest.LogCaptureFixture
+) -> None:
     server.mode = "error"
     d = _openai(server.url, tmp_path, clip_encoder, max_retries=2)
     img, mask = _image()

@@ -18,7 +18,9 @@ def offline():
 
 def _crops(n: int) -> list[np.ndarray]:
     rng = np.random.default_rng(0)
-    return [rng.integers(0, 256, (int(rng.integers(6, 90)), int(rng.integers(6, 90)), 3), dtype=np.uint8) for _ in range(n)]
+    return [
+        rng.integers(0, 256, (int(rng.integers(6, 90)), int(rng.integers(6, 90)), 3), dtype=np.uint8) for _ in range(n)
+    ]
 
 
 def test_shapes_norms_batching_determinism(offline) -> None:
@@ -32,7 +34,9 @@ def test_shapes_norms_batching_determinism(offline) -> None:
     np.testing.assert_allclose(x, single, atol=1e-5)
     np.testing.assert_allclose(offline.encode_images(crops), x, atol=1e-6)
     assert not np.allclose(x[0], x[1])
-    odd = offline.encode_images([np.zeros((5, 5), np.uint8), np.zeros((5, 5, 3), np.uint8), np.zeros((5, 5, 4), np.float32)])
+    odd = offline.encode_images(
+        [np.zeros((5, 5), np.uint8), np.zeros((5, 5, 3), np.uint8), np.zeros((5, 5, 4), np.float32)]
+    )
     np.testing.assert_allclose(odd[0], odd[1], atol=1e-6)
     np.testing.assert_allclose(odd[1], odd[2], atol=1e-6)
 

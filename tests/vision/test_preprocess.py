@@ -4,7 +4,13 @@ import numpy as np
 import pytest
 
 from openreloc_bench.vision.preprocess import (
-    InputError, as_rgb_uint8, check_crops, check_mask, mask_box, object_crop, square_crop,
+    InputError,
+    as_rgb_uint8,
+    check_crops,
+    check_mask,
+    mask_box,
+    object_crop,
+    square_crop,
     touches_border,
 )
 
@@ -68,10 +74,16 @@ def test_square_crop_keeps_position_at_border() -> None:
     assert crop2.shape[0] == crop2.shape[1] >= 4
 
 
-@pytest.mark.parametrize(("rows", "cols", "cut"), [
-    (slice(2, 5), slice(3, 6), False), (slice(0, 3), slice(3, 6), True), (slice(2, 5), slice(7, 10), True),
-    (slice(7, 10), slice(3, 6), True), (slice(2, 5), slice(0, 1), True),
-])
+@pytest.mark.parametrize(
+    ("rows", "cols", "cut"),
+    [
+        (slice(2, 5), slice(3, 6), False),
+        (slice(0, 3), slice(3, 6), True),
+        (slice(2, 5), slice(7, 10), True),
+        (slice(7, 10), slice(3, 6), True),
+        (slice(2, 5), slice(0, 1), True),
+    ],
+)
 def test_touches_border_iff_the_mask_reaches_an_image_edge(rows: slice, cols: slice, cut: bool) -> None:
     mask = np.zeros((10, 10), bool)
     mask[rows, cols] = True

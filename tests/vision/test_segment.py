@@ -2,10 +2,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from vision_scenes import COLOURS, draw_object
 
 from openreloc_bench.vision import create_segmenter
 from openreloc_bench.vision.preprocess import InputError
-from vision_scenes import COLOURS, draw_object
 
 
 def _scene(h: int = 120, w: int = 160) -> tuple[np.ndarray, np.ndarray]:
@@ -53,9 +53,14 @@ def test_noisy_gt_is_seeded_per_image_and_rates_work() -> None:
     assert all(np.array_equal(x.mask, y.mask) and np.array_equal(x.box, y.box) for x, y in zip(r1, r2))
     gt = {o.instance_id: o.mask for o in create_segmenter("gt", min_area=20).segment(img, inst)}
     assert any(not np.array_equal(o.mask, gt[o.instance_id]) for o in r1)  # masks were eroded/dilated
-    others = [create_segmenter("noisy-gt", seed=s, morph_rate=1.0, box_jitter=0.2, min_area=20).segment(img, inst) for s in range(4, 8)]
+    others = [
+        create_segmenter("noisy-gt", seed=s, morph_rate=1.0, box_jitter=0.2, min_area=20).segment(img, inst)
+        for s in range(4, 8)
+    ]
     assert any([o.box.tolist() for o in r1] != [o.box.tolist() for o in x] for x in others)
-    clean = create_segmenter("noisy-gt", drop_rate=0, morph_rate=0, merge_rate=0, box_jitter=0, min_area=20).segment(img, inst)
+    clean = create_segmenter("noisy-gt", drop_rate=0, morph_rate=0, merge_rate=0, box_jitter=0, min_area=20).segment(
+        img, inst
+    )
     assert [o.instance_id for o in clean] == [1, 2, 3]
     assert all(np.array_equal(o.mask, gt[o.instance_id]) for o in clean)
     assert create_segmenter("noisy-gt", drop_rate=1.0).segment(img, inst) == []
@@ -68,7 +73,9 @@ def test_noisy_gt_merges_touching_neighbours() -> None:
     inst = np.zeros((40, 60), np.int32)
     inst[10:30, 5:25] = 1
     inst[10:30, 25:45] = 2  # touches 1
-    objs = create_segmenter("noisy-gt", drop_rate=0, morph_rate=0, merge_rate=1.0, box_jitter=0, min_area=10).segment(img, inst)
+    objs = create_segmenter("noisy-gt", drop_rate=0, morph_rate=0, merge_rate=1.0, box_jitter=0, min_area=10).segment(
+        img, inst
+    )
     assert len(objs) == 1 and objs[0].mask.sum() == 800
 
 
@@ -90,7 +97,10 @@ def test_graph_segmenter_recovers_objects() -> None:
         assert o.mask.shape == inst.shape and o.mask.sum() <= 0.25 * inst.size
 
 
-@pytest.mark.parametrize("img", [np.zeros((60, 80, 3), np.uint8), np.full((60, 80), 128, np.uint8), np.random.default_rng(0).random((60, 80, 4))])
+@pytest.mark.parametrize(
+    "img",
+    [np.zeros((60, 80, 3), np.uint8), np.full((60, 80), 128, np.uint8), np.random.default_rng(0).random((60, 80, 4))],
+)
 def test_graph_segmenter_odd_images(img: np.ndarray) -> None:
     objs = create_segmenter("graph").segment(img)
     assert isinstance(objs, list)

@@ -25,8 +25,14 @@ from openreloc_bench.vision.training import (
 def _crops(categories: list[str], colours: list[str], descriptions: list[str] | None = None) -> CropSet:
     n = len(categories)
     return CropSet(
-        np.zeros((n, 8, 8, 3), np.uint8), scene=["s"] * n, split=["mapping"] * n, frame=["0"] * n,
-        object_id=list(range(1, n + 1)), category=categories, colour=colours, material=["wood"] * n,
+        np.zeros((n, 8, 8, 3), np.uint8),
+        scene=["s"] * n,
+        split=["mapping"] * n,
+        frame=["0"] * n,
+        object_id=list(range(1, n + 1)),
+        category=categories,
+        colour=colours,
+        material=["wood"] * n,
         description=descriptions or [""] * n,
     )
 
@@ -53,15 +59,24 @@ def test_vocabulary_is_open_and_consistent() -> None:
 
 
 def test_average_precision() -> None:
-    assert _average_precision(np.array([3.0, 2.0, 1.0]), np.array([True, False, True])) == pytest.approx((1 + 2 / 3) / 2)
+    assert _average_precision(np.array([3.0, 2.0, 1.0]), np.array([True, False, True])) == pytest.approx(
+        (1 + 2 / 3) / 2
+    )
     assert _average_precision(np.array([3.0, 2.0]), np.array([False, True])) == pytest.approx(0.5)
 
 
 def test_instance_recall_within_scene_and_pooled() -> None:
     keys = [1, 2, 1, 2]
     c = CropSet(
-        np.zeros((4, 8, 8, 3), np.uint8), scene=["a", "a", "a", "a"], split=["mapping", "mapping", "query", "query"],
-        frame=["0"] * 4, object_id=keys, category=["x"] * 4, colour=[""] * 4, material=[""] * 4, description=[""] * 4,
+        np.zeros((4, 8, 8, 3), np.uint8),
+        scene=["a", "a", "a", "a"],
+        split=["mapping", "mapping", "query", "query"],
+        frame=["0"] * 4,
+        object_id=keys,
+        category=["x"] * 4,
+        colour=[""] * 4,
+        material=[""] * 4,
+        description=[""] * 4,
     )
     E = np.array([[1, 0], [0, 1], [1, 0], [0, 1]], np.float32)
     r = _instance_recall(E, c)
@@ -140,27 +155,38 @@ def _two_view_crops() -> CropSet:
     """Six objects of three colours and shapes, four views each, at 16 px."""
     rng = np.random.default_rng(0)
     images, labels = [], []
-    for obj, (cat, col, rgb) in enumerate([("bed", "red", (200, 30, 30)), ("sofa", "blue", (30, 30, 200)),
-                                            ("lamp", "green", (30, 200, 30))] * 2):
+    for obj, (cat, col, rgb) in enumerate(
+        [("bed", "red", (200, 30, 30)), ("sofa", "blue", (30, 30, 200)), ("lamp", "green", (30, 200, 30))] * 2
+    ):
         for view in range(4):
             im = rng.integers(0, 40, (16, 16, 3)).astype(np.uint8)
             im[3 + view : 12 + view // 2, 2 + obj : 13] = rgb
             images.append(im)
             labels.append((f"s{obj % 2}", ["mapping", "query"][view % 2], cat, col, obj))
-    return CropSet(np.stack(images), scene=[x[0] for x in labels], split=[x[1] for x in labels],
-                   frame=[str(i) for i in range(len(labels))], object_id=[x[4] for x in labels],
-                   category=[x[2] for x in labels], colour=[x[3] for x in labels], material=["wood"] * len(labels),
-                   description=[""] * len(labels))
+    return CropSet(
+        np.stack(images),
+        scene=[x[0] for x in labels],
+        split=[x[1] for x in labels],
+        frame=[str(i) for i in range(len(labels))],
+        object_id=[x[4] for x in labels],
+        category=[x[2] for x in labels],
+        colour=[x[3] for x in labels],
+        material=["wood"] * len(labels),
+        description=[""] * len(labels),
+    )
 
 
 def _train(device: str) -> tuple[Any, dict[str, Any]]:
     cfg = TrainConfig(epochs=3, pairs_per_batch=8, scenes_per_batch=0, device=device, threads=1)
-    return train_tower(_two_view_crops(), _FixedTexts(), cfg, TowerConfig(input_size=16, widths=[8, 8, 16, 16]),
-                       log=lambda _: None)
+    return train_tower(
+        _two_view_crops(), _FixedTexts(), cfg, TowerConfig(input_size=16, widths=[8, 8, 16, 16]), log=lambda _: None
+    )
 
 
-@pytest.mark.parametrize("device", ["cpu", pytest.param("cuda", marks=pytest.mark.skipif(
-    not torch.cuda.is_available(), reason="no CUDA GPU here"))])
+@pytest.mark.parametrize(
+    "device",
+    ["cpu", pytest.param("cuda", marks=pytest.mark.skipif(not torch.cuda.is_available(), reason="no CUDA GPU here"))],
+)
 def test_train_tower_runs_on_its_device_and_returns_a_cpu_tower(device: str) -> None:
     tower, info = _train(device)
     assert all(p.device.type == "cpu" for p in tower.parameters()) and not tower.training
@@ -170,8 +196,11 @@ def test_train_tower_runs_on_its_device_and_returns_a_cpu_tower(device: str) -> 
         np.testing.assert_allclose(losses, [h["loss"] for h in _train("cpu")[1]["history"]], rtol=1e-2)
 
 
-@pytest.mark.parametrize("name, message", [("tpu", "unknown torch device"), ("meta", "runs on cpu or cuda")]
-                         + ([] if torch.cuda.is_available() else [("cuda", "no CUDA GPU")]))
+@pytest.mark.parametrize(
+    "name, message",
+    [("tpu", "unknown torch device"), ("meta", "runs on cpu or cuda")]
+    + ([] if torch.cuda.is_available() else [("cuda", "no CUDA GPU")]),
+)
 def test_training_device_refuses_what_cannot_train_here(name: str, message: str) -> None:
     with pytest.raises(ConfigError, match=message):
         training_device(name)

@@ -18,7 +18,9 @@ COLOURS = {"red": (200, 30, 30), "blue": (30, 60, 200), "green": (40, 160, 50), 
 SHAPES = ("box", "ball", "bottle")
 
 
-def draw_object(img: np.ndarray, inst: np.ndarray, oid: int, shape: str, rgb: tuple[int, int, int], cx: int, cy: int, r: int) -> None:
+def draw_object(
+    img: np.ndarray, inst: np.ndarray, oid: int, shape: str, rgb: tuple[int, int, int], cx: int, cy: int, r: int
+) -> None:
     layer = np.zeros(inst.shape, np.uint8)
     if shape == "box":
         cv2.rectangle(layer, (cx - r, cy - r), (cx + r, cy + r), 1, -1)
@@ -31,7 +33,9 @@ def draw_object(img: np.ndarray, inst: np.ndarray, oid: int, shape: str, rgb: tu
     inst[m] = oid
 
 
-def write_shapes_scene(root: Path, seed: int, n_objects: int = 4, frames: int = 3, hw: tuple[int, int] = (96, 128)) -> Path:
+def write_shapes_scene(
+    root: Path, seed: int, n_objects: int = 4, frames: int = 3, hw: tuple[int, int] = (96, 128)
+) -> Path:
     rng = np.random.default_rng(seed)
     h, w = hw
     K = geometry.intrinsics_from_fov(w, h, 60.0)
@@ -41,11 +45,15 @@ def write_shapes_scene(root: Path, seed: int, n_objects: int = 4, frames: int = 
     for i in range(n_objects):
         shape = SHAPES[int(rng.integers(len(SHAPES)))]
         colour = list(COLOURS)[int(rng.integers(len(COLOURS)))]
-        objs.append(ObjectInfo(
-            id=i + 1, category=shape, description=f"a {colour} {shape}",
-            attributes={"colour": colour, "material": "plastic", "size": "small"},
-            aabb=[[0.0, 0.0, 0.0], [0.1, 0.1, 0.1]],
-        ))
+        objs.append(
+            ObjectInfo(
+                id=i + 1,
+                category=shape,
+                description=f"a {colour} {shape}",
+                attributes={"colour": colour, "material": "plastic", "size": "small"},
+                aabb=[[0.0, 0.0, 0.0], [0.1, 0.1, 0.1]],
+            )
+        )
     objs.append(ObjectInfo(id=99, category="wall", structural=True))
     writer.write_objects(objs)
     for split, gain in (("mapping", 1.0), ("query", 1.0), ("query_light1", 0.6)):
@@ -58,7 +66,18 @@ def write_shapes_scene(root: Path, seed: int, n_objects: int = 4, frames: int = 
             cols = np.linspace(20, w - 20, n_objects).astype(int)
             for o, cx in zip(objs[:-1], cols):
                 r = int(rng.integers(8, 14))
-                draw_object(img, inst, o.id, o.category, COLOURS[o.attributes["colour"]], int(cx + rng.integers(-4, 5)), int(h * 0.6 + rng.integers(-6, 7)), r)
+                draw_object(
+                    img,
+                    inst,
+                    o.id,
+                    o.category,
+                    COLOURS[o.attributes["colour"]],
+                    int(cx + rng.integers(-4, 5)),
+                    int(h * 0.6 + rng.integers(-6, 7)),
+                    r,
+                )
             img = np.clip(img * gain, 0, 255).astype(np.uint8)
-            writer.write_frame(split, f, img, np.full((h, w), 2.0, np.float32), inst, geometry.look_at([2, 0, 1], [0, 0, 0.5]))
+            writer.write_frame(
+                split, f, img, np.full((h, w), 2.0, np.float32), inst, geometry.look_at([2, 0, 1], [0, 0, 0.5])
+            )
     return root

@@ -113,17 +113,6 @@ class RefineConfig:
     and update steps. 1 = every step."""
     anneal_steps: int = 30
     """Steps of the Huber-threshold decay (used only with ``huber_delta_start``)."""
-    solver: Literal["adam", "gauss-newton"] = "adam"
-    """How the dual-path loss is minimised. "adam" is the paper's (lr above, up to ``max_iterations``
-    steps). "gauss-newton" (beyond the paper) minimises the *same* robust loss by Levenberg-Marquardt
-    on iteratively reweighted (Huber) least squares, re-finding correspondences every iteration as
-    classic ICP does: ~10-30 iterations instead of 100-200 steps, 3x faster end to end, but it stops in
-    nearer local minima: measured on a generated 3-room scene (oracle association, 20 queries)
-    R@50/25 50/35% at 0.79 s vs Adam's 65/60% at 2.4 s."""
-    gn_iterations: int = 30
-    """Gauss-Newton: maximum iterations."""
-    gn_tolerance: float = 1e-4
-    """Gauss-Newton: stop when an accepted update moves less than this (metres, and radians)."""
     restart_degrees: float = 6.0
     """Beyond the paper (basin hopping): the chosen refined pose is refined again from four starts orbiting
     its matched landmarks' centre by +-this many degrees (:func:`orbit_starts`), and the lowest loss
@@ -238,9 +227,14 @@ def _quaternion_forms() -> torch.Tensor:
     M[1, 1].diagonal().copy_(torch.tensor([1.0, -1.0, 1.0, -1.0]))
     M[2, 2].diagonal().copy_(torch.tensor([1.0, -1.0, -1.0, 1.0]))
     w, x, y, z = range(4)
-    for (i, j), (a, b), (c, d), sign in [((0, 1), (x, y), (w, z), -1.0), ((1, 0), (x, y), (w, z), 1.0),
-                                         ((0, 2), (x, z), (w, y), 1.0), ((2, 0), (x, z), (w, y), -1.0),
-                                         ((1, 2), (y, z), (w, x), -1.0), ((2, 1), (y, z), (w, x), 1.0)]:
+    for (i, j), (a, b), (c, d), sign in [
+        ((0, 1), (x, y), (w, z), -1.0),
+        ((1, 0), (x, y), (w, z), 1.0),
+        ((0, 2), (x, z), (w, y), 1.0),
+        ((2, 0), (x, z), (w, y), -1.0),
+        ((1, 2), (y, z), (w, x), -1.0),
+        ((2, 1), (y, z), (w, x), 1.0),
+    ]:
         M[i, j, a, b] = M[i, j, b, a] = 1.0
         M[i, j, c, d] = M[i, j, d, c] = sign
     return M
@@ -313,8 +307,16 @@ class _Problem:
     converted so that the outside world only sees full-resolution pixels.
     """
 
-    def __init__(self, T_inits: list[np.ndarray], K: np.ndarray, targets: list[RefineTarget], cfg: RefineConfig,
-                 seed: int, occluders: np.ndarray | None, target_sets: list[list[int]] | None = None):
+    def __init__(
+        self,
+        T_inits: list[np.ndarray],
+        K: np.ndarray,
+        targets: list[RefineTarget],
+        cfg: RefineConfig,
+        seed: int,
+        occluders: np.ndarray | None,
+        target_sets: list[list[int]] | None = None,
+    ):
         rng = np.random.default_rng(seed)
         if target_sets is None:
             target_sets = [list(range(len(targets)))] * len(T_inits)
@@ -363,8 +365,12 @@ class _Problem:
         for b, ts in enumerate(target_sets):
             slots[b, : len(ts)], real[b, : len(ts)] = ts, True
         # its objects' points in its initial camera frame: (B, n_obj, n_pts, 3)
-        pts_c = np.stack([geometry.transform_points(geometry.invert(T), pts_w[row].reshape(-1, 3)).reshape(n_obj, n_pts, 3)
-                          for T, row in zip(T_inits, slots)])
+        pts_c = np.stack(
+            [
+                geometry.transform_points(geometry.invert(T), pts_w[row].reshape(-1, 3)).reshape(n_obj, n_pts, 3)
+                for T, row in zip(T_inits, slots)
+            ]
+        )
         self.slots, self.real = slots, torch.from_numpy(real)
         self.pts = torch.from_numpy(pts_c.astype(np.float32))
         self.pts_valid = torch.from_numpy(pts_valid[slots] & real[..., None])
@@ -373,8 +379,9 @@ class _Problem:
         self.n_pix = self.pix_valid.sum(-1).clamp_min(1)
         # per pixel of every object's image: nearest mask pixel (x, y), outside the mask, counted; one table
         # so that a step gathers once (``index_select`` on it: 3x faster than three advanced-indexing lookups)
-        self.pixel_table = torch.from_numpy(np.concatenate(
-            [nearest, outside[..., None], counted[..., None]], axis=-1).astype(np.float32)).reshape(-1, 4)
+        self.pixel_table = torch.from_numpy(
+            np.concatenate([nearest, outside[..., None], counted[..., None]], axis=-1).astype(np.float32)
+        ).reshape(-1, 4)
         self.offset = torch.from_numpy(slots * (H * W)).unsqueeze(-1)
         self.K = torch.tensor(scale_intrinsics(K, s), dtype=torch.float32)
         self.n_hyp, self.n_obj = n_hyp, n_obj
@@ -402,8 +409,9 @@ class _Problem:
         keeps the backward path's previous nearest-point correspondences. Differentiable in (q, t)."""
         return self.evaluate(q, t, delta, refresh)[0]
 
-    def evaluate(self, q: torch.Tensor, t: torch.Tensor, delta: float,
-                 refresh: bool = True) -> tuple[torch.Tensor, _Terms]:
+    def evaluate(
+        self, q: torch.Tensor, t: torch.Tensor, delta: float, refresh: bool = True
+    ) -> tuple[torch.Tensor, _Terms]:
         """:meth:`losses`, plus the intermediate tensors :meth:`gradient` needs."""
         cfg, K = self.cfg, self.K
         delta = delta * self.scale
@@ -442,8 +450,9 @@ class _Problem:
         terms = _Terms(R, pc, front, use, resid, fwd_sq, n_use, bwd_diff, bwd_sq, delta)
         return torch.where(no_front, worst, fwd + bwd), terms
 
-    def gradient(self, q: torch.Tensor, t: torch.Tensor, terms: _Terms,
-                 coef: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    def gradient(
+        self, q: torch.Tensor, t: torch.Tensor, terms: _Terms, coef: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor]:
         """d/d(q, t) of sum_(b, o) coef[b, o] * loss[b, o], by the chain rule through :meth:`evaluate`.
 
         Written out rather than left to autograd: a step is ~40 small tensor ops on a few thousand
@@ -472,7 +481,9 @@ class _Problem:
 
 def _huber_slope(sq_dist: torch.Tensor, delta: float) -> torch.Tensor:
     """d huber_sq / d sq_dist: 1 in the quadratic zone, delta / distance beyond it."""
-    return torch.where(sq_dist <= delta * delta, torch.ones_like(sq_dist), delta / torch.sqrt(sq_dist.clamp_min(delta * delta)))
+    return torch.where(
+        sq_dist <= delta * delta, torch.ones_like(sq_dist), delta / torch.sqrt(sq_dist.clamp_min(delta * delta))
+    )
 
 
 def _quat_gradient(q: torch.Tensor, g_R: torch.Tensor) -> torch.Tensor:
@@ -484,7 +495,9 @@ def _quat_gradient(q: torch.Tensor, g_R: torch.Tensor) -> torch.Tensor:
     return (g - qn * (qn * g).sum(-1, keepdim=True)) / norm
 
 
-def _weights(obj_losses: torch.Tensor, real: torch.Tensor, cfg: RefineConfig, active: bool, unit: float) -> torch.Tensor:
+def _weights(
+    obj_losses: torch.Tensor, real: torch.Tensor, cfg: RefineConfig, active: bool, unit: float
+) -> torch.Tensor:
     """(B, n_obj): 1 for objects within ``outlier_factor`` x their hypothesis' median loss (or below
     ``outlier_min_loss``), 0 for outliers (moved objects) and padding (``real`` false); while masking
     is not ``active``, 1 for every real object."""
@@ -551,8 +564,6 @@ def refine_poses(
     threads = torch.get_num_threads()
     torch.set_num_threads(1)  # a step is a few small ops: extra threads only add sync overhead (5-30x measured)
     try:
-        if cfg.solver == "gauss-newton":
-            return _optimise_gn(T_inits, K, targets, cfg, seed, occluders, target_sets)
         return _optimise(T_inits, K, targets, cfg, seed, occluders, target_sets)
     finally:
         torch.set_num_threads(threads)
@@ -615,8 +626,9 @@ class _Group:
         n = rows.stop - rows.start
         q, t = torch.tensor([[1.0, 0.0, 0.0, 0.0]] * n), torch.zeros(n, 3)
         opt = torch.optim.Adam([{"params": [q], "lr": cfg.lr_rotation}, {"params": [t], "lr": cfg.lr_translation}])
-        sched = torch.optim.lr_scheduler.ReduceLROnPlateau(opt, factor=0.5, patience=cfg.plateau_patience,
-                                                           threshold=cfg.plateau_threshold)
+        sched = torch.optim.lr_scheduler.ReduceLROnPlateau(
+            opt, factor=0.5, patience=cfg.plateau_patience, threshold=cfg.plateau_threshold
+        )
         return cls(rows, q, t, opt, sched)
 
 
@@ -631,12 +643,20 @@ def _grouped(target_sets: list[list[int]] | None, n_hyp: int) -> tuple[list[int]
     return order, [slice(a, e) for a, e in zip([0, *ends[:-1]], ends)]
 
 
-def _optimise(T_inits: list[np.ndarray], K: np.ndarray, targets: list[RefineTarget], cfg: RefineConfig, seed: int,
-              occluders: np.ndarray | None, target_sets: list[list[int]] | None) -> list[RefineResult]:
+def _optimise(
+    T_inits: list[np.ndarray],
+    K: np.ndarray,
+    targets: list[RefineTarget],
+    cfg: RefineConfig,
+    seed: int,
+    occluders: np.ndarray | None,
+    target_sets: list[list[int]] | None,
+) -> list[RefineResult]:
     order, slices = _grouped(target_sets, len(T_inits))
     T_inits = [T_inits[b] for b in order]
-    problem = _Problem(T_inits, K, targets, cfg, seed, occluders,
-                       None if target_sets is None else [target_sets[b] for b in order])
+    problem = _Problem(
+        T_inits, K, targets, cfg, seed, occluders, None if target_sets is None else [target_sets[b] for b in order]
+    )
     B, unit = len(T_inits), problem.unit
     groups = [_Group.start(rows, cfg) for rows in slices]
     # state of the live batch (the running groups' hypotheses, in order); a group that stops leaves it
@@ -680,8 +700,11 @@ def _optimise(T_inits: list[np.ndarray], K: np.ndarray, targets: list[RefineTarg
             if annealed:
                 g.sched.step(float(value[mine][on].sum()) if on.any() else 0.0)
             g.lowest.append(float(best_loss[mine].min()))
-            if (not on.any() or _stalled(g.lowest, cfg, it)
-                    or g.opt.param_groups[0]["lr"] < cfg.lr_rotation * 0.5**cfg.lr_reductions * 1.0001):
+            if (
+                not on.any()
+                or _stalled(g.lowest, cfg, it)
+                or g.opt.param_groups[0]["lr"] < cfg.lr_rotation * 0.5**cfg.lr_reductions * 1.0001
+            ):
                 g.stopped = it
                 done_q[g.rows], done_t[g.rows] = best_q[mine], best_t[mine]
             else:
@@ -700,9 +723,16 @@ def _optimise(T_inits: list[np.ndarray], K: np.ndarray, targets: list[RefineTarg
     return [results[order.index(b)] for b in range(B)]
 
 
-def _results(problem: _Problem, T_inits: list[np.ndarray], targets: list[RefineTarget], best_q: torch.Tensor,
-             best_t: torch.Tensor, initial: torch.Tensor, why: list[str | None],
-             iterations: list[int]) -> list[RefineResult]:
+def _results(
+    problem: _Problem,
+    T_inits: list[np.ndarray],
+    targets: list[RefineTarget],
+    best_q: torch.Tensor,
+    best_t: torch.Tensor,
+    initial: torch.Tensor,
+    why: list[str | None],
+    iterations: list[int],
+) -> list[RefineResult]:
     """Score the final local poses with the (shared) loss and express them as camera-to-world poses."""
     cfg, unit = problem.cfg, problem.unit
     with torch.no_grad():
@@ -715,188 +745,33 @@ def _results(problem: _Problem, T_inits: list[np.ndarray], targets: list[RefineT
         ids = [targets[i].landmark_id for i in problem.slots[b, :n]]
         qn = best_q[b].numpy().astype(np.float64)
         tn = best_t[b].numpy().astype(np.float64)
-        if why[b] is None and not (np.all(np.isfinite(qn)) and np.linalg.norm(qn) > 1e-8 and np.all(np.isfinite(tn))
-                                   and np.isfinite(float(final[b]))):
+        if why[b] is None and not (
+            np.all(np.isfinite(qn))
+            and np.linalg.norm(qn) > 1e-8
+            and np.all(np.isfinite(tn))
+            and np.isfinite(float(final[b]))
+        ):
             why[b] = "pose became non-finite"
         if why[b] is not None:
-            out.append(RefineResult(T_init.copy(), float("inf"), float(initial[b]) / unit, iterations=iterations[b],
-                                    reason=f"refinement diverged: {why[b]}"))
+            out.append(
+                RefineResult(
+                    T_init.copy(),
+                    float("inf"),
+                    float(initial[b]) / unit,
+                    iterations=iterations[b],
+                    reason=f"refinement diverged: {why[b]}",
+                )
+            )
             continue
         delta_T = geometry.qt_to_pose(qn / np.linalg.norm(qn), tn)
-        out.append(RefineResult(
-            T_wc=geometry.compose(T_init, delta_T),
-            loss=float(final[b]) / unit,
-            initial_loss=float(initial[b]) / unit,
-            object_losses={i: float(v) / unit for i, v in zip(ids, obj[b, :n].tolist())},
-            outliers=[i for i, keep in zip(ids, w[b, :n].tolist()) if keep == 0.0],
-            iterations=iterations[b],
-        ))
+        out.append(
+            RefineResult(
+                T_wc=geometry.compose(T_init, delta_T),
+                loss=float(final[b]) / unit,
+                initial_loss=float(initial[b]) / unit,
+                object_losses={i: float(v) / unit for i, v in zip(ids, obj[b, :n].tolist())},
+                outliers=[i for i, keep in zip(ids, w[b, :n].tolist()) if keep == 0.0],
+                iterations=iterations[b],
+            )
+        )
     return out
-
-
-def _huber_irls(sq: np.ndarray, delta: float) -> tuple[np.ndarray, np.ndarray]:
-    """(Huber loss of squared distances, IRLS weight d loss / d sq) — numpy twin of :func:`huber_sq`."""
-    d2 = delta * delta
-    root = np.sqrt(np.maximum(sq, d2))
-    return np.where(sq <= d2, sq, 2.0 * delta * root - d2), np.where(sq <= d2, 1.0, delta / root)
-
-
-def _projection_jacobian(X: np.ndarray, K: np.ndarray) -> np.ndarray:
-    """(N, 2, 6) d(u, v) / d(v, w) for a left perturbation exp([v, w]) of points ``X`` (camera frame)."""
-    x, y, z = X[:, 0], X[:, 1], X[:, 2]
-    iz, fx, fy = 1.0 / z, K[0, 0], K[1, 1]
-    zero = np.zeros_like(z)
-    ju = np.stack([fx * iz, zero, -fx * x * iz**2, -fx * x * y * iz**2, fx * (1 + x * x * iz**2), -fx * y * iz], 1)
-    jv = np.stack([zero, fy * iz, -fy * y * iz**2, -fy * (1 + y * y * iz**2), fy * x * y * iz**2, fy * x * iz], 1)
-    return np.stack([ju, jv], 1)
-
-
-class _GaussNewtonTerms:
-    """The dual-path loss of one hypothesis at a local transform ``M`` (initial camera -> current
-    camera), with its IRLS normal equations. Numpy and scipy's cKDTree: per iteration, one table
-    lookup for the forward path and one KD-tree query (all objects at once, separated by a coordinate
-    offset) for the backward path."""
-
-    def __init__(self, problem: _Problem, b: int, delta: float):
-        n = problem.n_obj
-        self.X0 = problem.pts[b].numpy().astype(np.float64)  # (n_obj, n_pts, 3)
-        self.valid = problem.pts_valid[b].numpy()
-        self.pix = problem.pix[b * n : (b + 1) * n].numpy().astype(np.float64)  # (n_obj, n_pix, 2)
-        self.pix_valid = problem.pix_valid[b].numpy()
-        self.n_pix = np.maximum(self.pix_valid.sum(1), 1)
-        self.offset = problem.offset[b].numpy()  # (n_obj, 1): where each object's pixel table starts
-        table = problem.pixel_table.numpy()
-        self.nearest = table[:, :2].astype(np.float64)
-        self.outside = table[:, 2] > 0
-        self.counted = table[:, 3] > 0
-        self.K = problem.K.numpy().astype(np.float64)
-        self.H, self.W, self.n_obj, self.delta = problem.H, problem.W, n, delta
-        self.min_depth = problem.cfg.min_depth
-        self.obj_of_pt = np.broadcast_to(np.arange(n)[:, None], self.valid.shape)
-        self.obj_of_pix = np.broadcast_to(np.arange(n)[:, None], self.pix_valid.shape)
-        self.sep = 4.0 * (self.H + self.W)  # offset that keeps objects apart in one KD-tree
-
-    def evaluate(self, M: np.ndarray, weights: np.ndarray, normal: bool) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
-        """Per-object losses at ``M``; with ``normal``, also (H, g) of the ``weights``-combined loss."""
-        from scipy.spatial import cKDTree
-
-        X = self.X0 @ M[:3, :3].T + M[:3, 3]
-        z = X[..., 2]
-        front = self.valid & (z > self.min_depth)
-        zs = np.where(front, z, 1.0)
-        uv = np.stack([self.K[0, 0] * X[..., 0] / zs + self.K[0, 2], self.K[1, 1] * X[..., 1] / zs + self.K[1, 2]], -1)
-        ui, vi = np.rint(uv[..., 0]).astype(np.int64), np.rint(uv[..., 1]).astype(np.int64)
-        in_img = front & (ui >= 0) & (ui < self.W) & (vi >= 0) & (vi < self.H)
-        flat = np.clip(vi, 0, self.H - 1) * self.W + np.clip(ui, 0, self.W - 1) + self.offset
-        use = in_img & self.counted[flat]
-        r_f = (uv - self.nearest[flat]) * self.outside[flat][..., None]
-        rho_f, w_f = _huber_irls((r_f**2).sum(-1), self.delta)
-        n_use = np.maximum(use.sum(1), 1)
-        fwd = (rho_f * use).sum(1) / n_use
-        # backward: every mask pixel to the nearest projected point of its object
-        bwd = np.zeros(self.n_obj)
-        pts_idx = np.flatnonzero(front)
-        no_front = front.sum(1) == 0
-        nn = None
-        if len(pts_idx):
-            obj_pts = self.obj_of_pt.reshape(-1)[pts_idx]
-            tree_xy = uv.reshape(-1, 2)[pts_idx] + np.stack([obj_pts * self.sep, np.zeros_like(obj_pts)], 1)
-            pv = np.flatnonzero(self.pix_valid.reshape(-1))
-            obj_pix = self.obj_of_pix.reshape(-1)[pv]
-            q_xy = self.pix.reshape(-1, 2)[pv] + np.stack([obj_pix * self.sep, np.zeros_like(obj_pix)], 1)
-            d, j = cKDTree(tree_xy).query(q_xy)
-            nn = pts_idx[j]
-            rho_b, w_b = _huber_irls(d**2, self.delta)
-            rho_b = np.where(no_front[obj_pix], 0.0, rho_b)
-            bwd = np.bincount(obj_pix, rho_b, self.n_obj) / self.n_pix
-        worst = 4.0 * self.delta * max(self.H, self.W)
-        losses = np.where(no_front, worst, fwd + bwd)
-        if not normal:
-            return losses, None, None
-        wobj = weights / max(weights.sum(), 1.0)
-        Hm, g = np.zeros((6, 6)), np.zeros(6)
-        # forward residuals: only points outside their mask have a non-zero derivative
-        sel = use & self.outside[flat]
-        if sel.any():
-            J = _projection_jacobian(X[sel], self.K)
-            c = (wobj[:, None] / n_use[:, None] * w_f)[sel]
-            Hm += np.einsum("n,nki,nkj->ij", c, J, J)
-            g += np.einsum("n,nki,nk->i", c, J, r_f[sel])
-        if nn is not None:
-            ok = ~no_front[obj_pix]
-            Xn = X.reshape(-1, 3)[nn[ok]]
-            r_b = uv.reshape(-1, 2)[nn[ok]] - self.pix.reshape(-1, 2)[pv[ok]]
-            c = (wobj[obj_pix] / self.n_pix[obj_pix] * w_b)[ok]
-            J = _projection_jacobian(Xn, self.K)
-            Hm += np.einsum("n,nki,nkj->ij", c, J, J)
-            g += np.einsum("n,nki,nk->i", c, J, r_b)
-        return losses, Hm, g
-
-
-def _se3_exp(xi: np.ndarray) -> np.ndarray:
-    """exp of a twist (v, w) as a 4x4 transform (scipy rotation vector for the rotation part)."""
-    from scipy.spatial.transform import Rotation
-
-    T = np.eye(4)
-    T[:3, :3] = Rotation.from_rotvec(xi[3:]).as_matrix()
-    T[:3, 3] = xi[:3]
-    return T
-
-
-def _optimise_gn(T_inits: list[np.ndarray], K: np.ndarray, targets: list[RefineTarget], cfg: RefineConfig, seed: int,
-                 occluders: np.ndarray | None, target_sets: list[list[int]] | None) -> list[RefineResult]:
-    """Levenberg-Marquardt on the IRLS-linearised dual-path loss, one hypothesis at a time."""
-    problem = _Problem(T_inits, K, targets, cfg, seed, occluders, target_sets)
-    delta = cfg.huber_delta * problem.scale
-    n_hyp = len(T_inits)
-    best_q = torch.zeros(n_hyp, 4)
-    best_t = torch.zeros(n_hyp, 3)
-    initial = torch.zeros(n_hyp)
-    why: list[str | None] = [None] * n_hyp
-    iterations = [0] * n_hyp
-    for b in range(n_hyp):
-        terms = _GaussNewtonTerms(problem, b, delta)
-        M = np.eye(4)
-        real = problem.real[b].numpy()
-        weights = real.astype(float)
-        losses, Hm, g = terms.evaluate(M, weights, normal=True)
-        loss = float(losses @ weights / weights.sum())
-        initial[b] = loss
-        lam, it, masking = 1e-3, 0, False
-        for it in range(1, cfg.gn_iterations + 1):
-            if not (np.isfinite(loss) and np.all(np.isfinite(Hm)) and np.all(np.isfinite(g))):
-                why[b] = "non-finite loss or gradient"
-                break
-            xi, M_new, new_losses = None, M, losses
-            for _ in range(8):  # LM: raise damping until the step lowers the loss
-                try:
-                    step = -np.linalg.solve(Hm + lam * np.diag(np.diag(Hm) + 1e-9), g)
-                except np.linalg.LinAlgError:
-                    lam *= 10
-                    continue
-                cand = _se3_exp(step) @ M
-                cand_losses, _, _ = terms.evaluate(cand, weights, normal=False)
-                if np.isfinite(cand_losses).all() and float(cand_losses @ weights / max(weights.sum(), 1.0)) <= loss:
-                    xi, M_new, new_losses = step, cand, cand_losses
-                    break
-                lam *= 4
-            converged = xi is None or (np.linalg.norm(xi[:3]) < cfg.gn_tolerance and np.linalg.norm(xi[3:]) < cfg.gn_tolerance)
-            M, lam = M_new, max(lam / 3, 1e-7)
-            if converged:
-                if masking:
-                    break
-                # moved objects: once converged on all objects, mask those far above the median and go on
-                # (masking earlier would drop objects that only look bad because the start is off)
-                masking = True
-                limit = max(cfg.outlier_factor * np.median(new_losses[real]), cfg.outlier_min_loss * problem.unit)
-                weights = ((new_losses <= limit) & real).astype(float)
-                if weights.sum() == real.sum():
-                    break
-            losses, Hm, g = terms.evaluate(M, weights, normal=True)
-            loss = float(losses @ weights / max(weights.sum(), 1.0))
-        iterations[b] = it
-        # the torch loss parametrises camera points as R^T (p - t): R = R_M^T, t = -R_M^T t_M
-        R = M[:3, :3].T
-        best_q[b] = torch.from_numpy(geometry.rotmat_to_quat(R).astype(np.float32))
-        best_t[b] = torch.from_numpy((-R @ M[:3, 3]).astype(np.float32))
-    return _results(problem, T_inits, targets, best_q, best_t, initial, why, iterations)

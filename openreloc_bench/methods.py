@@ -8,17 +8,18 @@ scripts and tests.
 
 from __future__ import annotations
 
-import json
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field, fields, is_dataclass
+from dataclasses import asdict, dataclass, field, is_dataclass
 from importlib.metadata import entry_points
 from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
 
 import cv2
 import numpy as np
+from tqdm import tqdm
 
-from openreloc_bench.data import io
+from openreloc_bench import config
+from openreloc_bench.data import mapfile
 from openreloc_bench.data.types import SceneSequence
 from openreloc_bench.errors import ConfigError, DataError
 
@@ -132,7 +133,11 @@ class NearestFrameConfig:
     """Config of :class:`NearestFrame`."""
 
     thumb_size: int = 32
-    """Side of the square grey thumbnail each mapping frame is reduced to (pixels)."""
+    """Side of the square grey thumbnail each mapping frame is reduced to (pixels, 4-256)."""
+
+    def __post_init__(self) -> None:
+        if not 4 <= self.thumb_size <= 256:
+            raise ValueError(f"'thumb_size' must be in [4, 256], got {self.thumb_size}")
 
 
 class NearestFrame:
@@ -143,13 +148,10 @@ class NearestFrame:
     """
 
     name = "nearest-frame"
+    map_format = ("nearest-frame-map", 1)
 
     def __init__(self, **overrides: Any):
-        known = {f.name for f in fields(NearestFrameConfig)}
-        unknown = set(overrides) - known
-        if unknown:
-            raise ConfigError(f"nearest-frame: unknown config key(s) {sorted(unknown)} (known: {sorted(known)})")
-        self.config = NearestFrameConfig(**overrides)
+        self.config = config.from_dict(NearestFrameConfig, overrides, "nearest-frame")
         self._thumbs: np.ndarray | None = None
         self._poses: np.ndarray | None = None
 
@@ -161,24 +163,25 @@ class NearestFrame:
         return t / max(float(np.linalg.norm(t)), 1e-6)
 
     def build_map(self, mapping: SceneSequence, map_dir: Path) -> None:
-        from tqdm import tqdm
-
         thumbs = np.stack([self._thumb(f.color) for f in tqdm(mapping, desc="nearest-frame map", leave=False)])
-        map_dir = Path(map_dir)
-        map_dir.mkdir(parents=True, exist_ok=True)
-        import io as _io
-
-        buf = _io.BytesIO()
-        np.savez_compressed(buf, thumbs=thumbs.astype(np.float16), poses=mapping.poses)
-        io.atomic_write_bytes(map_dir / "nearest_frame.npz", buf.getvalue())
-        io.atomic_write_text(map_dir / "config.json", json.dumps(asdict(self.config)))
+        arrays = {"thumbs": thumbs.astype(np.float16), "poses": mapping.poses}
+        payload = {"thumbs.npz": mapfile.npz_bytes(arrays), "config.json": mapfile.json_bytes(asdict(self.config))}
+        mapfile.write_file_set(map_dir, *self.map_format, payload)
 
     def load_map(self, map_dir: Path) -> None:
-        path = Path(map_dir) / "nearest_frame.npz"
-        if not path.is_file():
-            raise DataError(path, "map file not found (build the map first)")
-        with np.load(path) as z:
-            self._thumbs, self._poses = z["thumbs"].astype(np.float32), z["poses"]
+        path = Path(map_dir) / "thumbs.npz"
+        blobs = mapfile.read_file_set(map_dir, *self.map_format, {"thumbs.npz", "config.json"})
+        built = mapfile.load_json(blobs["config.json"], Path(map_dir) / "config.json")
+        if built != asdict(self.config):
+            raise DataError(
+                Path(map_dir) / "config.json", f"map built with {built}, this method has {asdict(self.config)}"
+            )
+        a = mapfile.load_npz(blobs["thumbs.npz"], path)
+        thumbs, poses = a.get("thumbs"), a.get("poses")
+        s = self.config.thumb_size
+        if thumbs is None or poses is None or thumbs.shape[1:] != (s * s,) or poses.shape != (len(thumbs), 4, 4):
+            raise DataError(path, "malformed map arrays (expected thumbs (N, thumb_size^2) and poses (N, 4, 4))")
+        self._thumbs, self._poses = thumbs.astype(np.float32), poses
 
     def localize(self, query: QueryFrame) -> PoseEstimate | Failure:
         if self._thumbs is None or self._poses is None:

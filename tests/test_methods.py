@@ -60,8 +60,24 @@ def test_nearest_frame_retrieves_the_matching_mapping_frame(tiny_scene: Path, tm
 
 
 def test_load_missing_map(tmp_path: Path):
-    with pytest.raises(DataError, match="map file not found"):
+    with pytest.raises(DataError, match="no nearest-frame-map here"):
         NearestFrame().load_map(tmp_path)
+
+
+def test_corrupted_or_mismatched_nearest_frame_map_is_a_one_line_error(tiny_scene: Path, tmp_path: Path):
+    NearestFrame(thumb_size=8).build_map(Scene(tiny_scene).sequence("mapping"), tmp_path)
+    with pytest.raises(DataError, match="config.json: map built with"):
+        NearestFrame(thumb_size=16).load_map(tmp_path)
+    blob = (tmp_path / "thumbs.npz").read_bytes()
+    (tmp_path / "thumbs.npz").write_bytes(blob[: len(blob) // 2])
+    with pytest.raises(DataError, match="thumbs.npz: checksum mismatch"):
+        NearestFrame(thumb_size=8).load_map(tmp_path)
+
+
+@pytest.mark.parametrize("value", [-5, 0, 1000, "big", 8.5])
+def test_invalid_nearest_frame_settings_are_config_errors(value: object):
+    with pytest.raises(ConfigError, match="thumb_size"):
+        NearestFrame(thumb_size=value)
 
 
 def test_query_track():

@@ -16,10 +16,6 @@ byte-identical when the same map is saved twice (fixed zip timestamps, sorted JS
 
 from __future__ import annotations
 
-import hashlib
-import io as _io
-import json
-import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -27,12 +23,11 @@ from typing import Any
 import networkx as nx
 import numpy as np
 
-from openreloc_bench.data import io
+from openreloc_bench.data import mapfile
 from openreloc_bench.errors import DataError
 
 MAP_FORMAT_VERSION = 1
 MAP_FORMAT_NAME = "openreloc-map"
-MANIFEST = "manifest.json"
 ARRAYS = "arrays.npz"
 META = "meta.json"
 EDGE_KINDS = ("knn", "overlap")
@@ -170,17 +165,8 @@ class ObjectMap:
                 str(lm.id): {"valid": bool(lm.valid), "category": lm.category, "n_views": int(lm.n_views)} for lm in lms
             },
         }
-        payload = {ARRAYS: _npz_bytes(arrays), META: (json.dumps(meta, indent=1, sort_keys=True) + "\n").encode()}
-        for name, data in payload.items():
-            io.atomic_write_bytes(map_dir / name, data)
-        io.write_json(
-            map_dir / MANIFEST,
-            {
-                "format": MAP_FORMAT_NAME,
-                "version": MAP_FORMAT_VERSION,
-                "files": {n: {"sha256": hashlib.sha256(d).hexdigest(), "bytes": len(d)} for n, d in payload.items()},
-            },
-        )
+        payload = {ARRAYS: mapfile.npz_bytes(arrays), META: mapfile.json_bytes(meta)}
+        mapfile.write_file_set(map_dir, MAP_FORMAT_NAME, MAP_FORMAT_VERSION, payload)
 
     # ---------------------------------------------------------------------------------------- load
 
@@ -188,25 +174,13 @@ class ObjectMap:
     def load(cls, map_dir: Path | str) -> ObjectMap:
         """Read a map written by :meth:`save`; DataError naming the file on any inconsistency."""
         map_dir = Path(map_dir)
-        manifest_path = map_dir / MANIFEST
-        if not manifest_path.is_file():
-            raise DataError(manifest_path, "not an OpenReLoc map (manifest.json missing)")
-        manifest = io.read_json(manifest_path)
-        _check_version(manifest, manifest_path)
-        files = manifest.get("files")
-        if not isinstance(files, dict) or set(files) != {ARRAYS, META}:
-            raise DataError(manifest_path, f"manifest must list exactly {ARRAYS} and {META}")
-        blobs = {name: _verified_bytes(map_dir / name, entry) for name, entry in files.items()}
+        blobs = mapfile.read_file_set(map_dir, MAP_FORMAT_NAME, MAP_FORMAT_VERSION, {ARRAYS, META})
+        meta = mapfile.load_json(blobs[META], map_dir / META)
+        mapfile.check_format(meta, map_dir / META, MAP_FORMAT_NAME, MAP_FORMAT_VERSION)
+        a = mapfile.load_npz(blobs[ARRAYS], map_dir / ARRAYS)
         try:
-            meta = json.loads(blobs[META].decode())
-        except (json.JSONDecodeError, UnicodeDecodeError) as e:
-            raise DataError(map_dir / META, f"not valid JSON ({e})") from None
-        _check_version(meta, map_dir / META)
-        try:
-            with np.load(_io.BytesIO(blobs[ARRAYS]), allow_pickle=False) as z:
-                a = {k: z[k] for k in z.files}
             return cls._from_arrays(a, meta)
-        except (KeyError, ValueError, IndexError, zipfile.BadZipFile) as e:
+        except (KeyError, ValueError, IndexError) as e:
             raise DataError(map_dir / ARRAYS, f"malformed map arrays ({type(e).__name__}: {e})") from None
 
     @classmethod
@@ -261,41 +235,6 @@ class ObjectMap:
 def map_size_bytes(map_dir: Path | str) -> int:
     """Bytes of every file of a saved map (what the harness counts as map size)."""
     return sum(p.stat().st_size for p in Path(map_dir).rglob("*") if p.is_file())
-
-
-def _check_version(doc: Any, path: Path) -> None:
-    if not isinstance(doc, dict) or doc.get("format") != MAP_FORMAT_NAME:
-        raise DataError(path, "not an OpenReLoc map file")
-    if doc.get("version") != MAP_FORMAT_VERSION:
-        raise DataError(
-            path,
-            f"map format version {doc.get('version')!r}, but this openreloc-bench reads version "
-            f"{MAP_FORMAT_VERSION}: rebuild the map with `openreloc-bench map`",
-        )
-
-
-def _verified_bytes(path: Path, entry: Any) -> bytes:
-    if not path.is_file():
-        raise DataError(path, "file not found (listed in the map manifest)")
-    data = path.read_bytes()
-    if not isinstance(entry, dict) or "sha256" not in entry:
-        raise DataError(path.parent / MANIFEST, f"no checksum for {path.name}")
-    if len(data) != entry.get("bytes") or hashlib.sha256(data).hexdigest() != entry["sha256"]:
-        raise DataError(path, "checksum mismatch: the map file is truncated or was modified; rebuild the map")
-    return data
-
-
-def _npz_bytes(arrays: dict[str, np.ndarray]) -> bytes:
-    """An ``.npz`` (readable by ``np.load``) with fixed timestamps, so equal maps give equal bytes."""
-    buf = _io.BytesIO()
-    with zipfile.ZipFile(buf, "w", compression=zipfile.ZIP_DEFLATED) as zf:
-        for name in sorted(arrays):
-            info = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
-            info.compress_type = zipfile.ZIP_DEFLATED
-            arr = _io.BytesIO()
-            np.lib.format.write_array(arr, np.ascontiguousarray(arrays[name]), allow_pickle=False)
-            zf.writestr(info, arr.getvalue())
-    return buf.getvalue()
 
 
 def _plain(v: Any) -> Any:

@@ -9,9 +9,9 @@ import networkx as nx
 import numpy as np
 import pytest
 
+from openreloc_bench.data.mapfile import MANIFEST
 from openreloc_bench.errors import DataError
 from openreloc_bench.openreloc.map import (
-    MANIFEST,
     Landmark,
     ObjectMap,
     ReferenceFrame,
@@ -124,5 +124,5 @@ def test_other_version_is_refused(tmp_path: Path) -> None:
 
 
 def test_missing_map(tmp_path: Path) -> None:
-    with pytest.raises(DataError, match="not an OpenReLoc map"):
+    with pytest.raises(DataError, match="missing: no openreloc-map here"):
         ObjectMap.load(tmp_path)

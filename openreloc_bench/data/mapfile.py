@@ -1,0 +1,122 @@
+"""Versioned, checksummed file sets: every on-disk artefact a method loads (maps, weights).
+
+A file set is a directory holding some payload files and ``manifest.json``, written last, with the
+format name and version and the sha256 and size of every payload file. Reading checks all of it, so
+a truncated, edited or foreign file, or a set written by another format version, fails with a
+one-line :class:`~openreloc_bench.errors.DataError` naming the file instead of a traceback deep in a
+decoder. Saving the same content twice gives the same bytes (sorted JSON, fixed zip timestamps).
+
+    write_file_set(map_dir, "my-method-map", 1, {"arrays.npz": npz_bytes(arrays), "meta.json": ...})
+    blobs = read_file_set(map_dir, "my-method-map", 1, {"arrays.npz", "meta.json"})
+    arrays = load_npz(blobs["arrays.npz"], map_dir / "arrays.npz")
+"""
+
+from __future__ import annotations
+
+import hashlib
+import io as _io
+import json
+import zipfile
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from openreloc_bench.data import io
+from openreloc_bench.errors import DataError
+
+MANIFEST = "manifest.json"
+
+
+def write_file_set(directory: Path | str, format_name: str, version: int, payload: dict[str, bytes]) -> None:
+    """Write ``payload`` (file name -> bytes) atomically into ``directory``, then its manifest."""
+    directory = Path(directory)
+    for name, data in payload.items():
+        io.atomic_write_bytes(directory / name, data)
+    io.write_json(
+        directory / MANIFEST,
+        {
+            "format": format_name,
+            "version": version,
+            "files": {n: {"sha256": hashlib.sha256(d).hexdigest(), "bytes": len(d)} for n, d in payload.items()},
+        },
+    )
+
+
+def read_file_set(
+    directory: Path | str, format_name: str, version: int, expected: set[str] | None = None
+) -> dict[str, bytes]:
+    """The verified payload of a file set (file name -> bytes); DataError on any inconsistency.
+
+    ``expected``: the exact set of payload file names this reader needs (None: whatever is listed).
+    """
+    directory = Path(directory)
+    manifest_path = directory / MANIFEST
+    if not directory.is_dir():
+        raise DataError(directory, f"not found (expected a {format_name} directory)")
+    if not manifest_path.is_file():
+        raise DataError(manifest_path, f"missing: no {format_name} here (build it first)")
+    manifest = io.read_json(manifest_path)
+    check_format(manifest, manifest_path, format_name, version)
+    files = manifest.get("files")
+    if not isinstance(files, dict) or (expected is not None and set(files) != expected):
+        raise DataError(manifest_path, f"manifest must list exactly {', '.join(sorted(expected or ()))}")
+    return {name: _verified_bytes(directory / name, entry) for name, entry in files.items()}
+
+
+def check_format(doc: Any, path: Path, format_name: str, version: int) -> None:
+    """DataError unless ``doc`` (a manifest or metadata mapping) names this format and version."""
+    if not isinstance(doc, dict) or doc.get("format") != format_name:
+        raise DataError(path, f"not a {format_name} file (format {doc.get('format') if isinstance(doc, dict) else None!r})")
+    if doc.get("version") != version:
+        raise DataError(
+            path,
+            f"{format_name} format version {doc.get('version')!r}, but this openreloc-bench reads version "
+            f"{version}: build it again",
+        )
+
+
+def _verified_bytes(path: Path, entry: Any) -> bytes:
+    if not path.is_file():
+        raise DataError(path, f"file not found (listed in {MANIFEST})")
+    data = path.read_bytes()
+    if not isinstance(entry, dict) or "sha256" not in entry:
+        raise DataError(path.parent / MANIFEST, f"no checksum for {path.name}")
+    if len(data) != entry.get("bytes") or hashlib.sha256(data).hexdigest() != entry["sha256"]:
+        raise DataError(path, "checksum mismatch: the file is truncated or was modified; build it again")
+    return data
+
+
+def json_bytes(obj: Any) -> bytes:
+    """Deterministic JSON bytes (sorted keys, fixed indent)."""
+    return (json.dumps(obj, indent=1, sort_keys=True) + "\n").encode()
+
+
+def load_json(blob: bytes, path: Path) -> Any:
+    """Parse verified JSON bytes; DataError naming ``path`` if they are not JSON."""
+    try:
+        return json.loads(blob.decode("utf-8"))
+    except (json.JSONDecodeError, UnicodeDecodeError) as e:
+        raise DataError(path, f"not valid JSON ({e})") from None
+
+
+def npz_bytes(arrays: dict[str, np.ndarray]) -> bytes:
+    """An ``.npz`` (readable by ``np.load``) with fixed timestamps, so equal arrays give equal bytes."""
+    buf = _io.BytesIO()
+    with zipfile.ZipFile(buf, "w", compression=zipfile.ZIP_DEFLATED) as zf:
+        for name in sorted(arrays):
+            info = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
+            info.compress_type = zipfile.ZIP_DEFLATED
+            arr = _io.BytesIO()
+            np.lib.format.write_array(arr, np.ascontiguousarray(arrays[name]), allow_pickle=False)
+            zf.writestr(info, arr.getvalue())
+    return buf.getvalue()
+
+
+def load_npz(blob: bytes, path: Path) -> dict[str, np.ndarray]:
+    """Every array of verified ``.npz`` bytes (no pickles); DataError naming ``path`` if malformed."""
+    try:
+        with np.load(_io.BytesIO(blob), allow_pickle=False) as z:
+            return {k: z[k] for k in z.files}
+    except (ValueError, OSError, zipfile.BadZipFile) as e:
+        raise DataError(path, f"malformed arrays ({type(e).__name__}: {e})") from None

@@ -15,7 +15,7 @@ import numpy as np
 import torch
 
 from openreloc_bench.commands.localize import localize_split, summary
-from openreloc_bench.commands.map import parse_overrides
+from openreloc_bench.config import parse_overrides
 from openreloc_bench.data.scene import Scene
 from openreloc_bench.methods import create_method
 from openreloc_bench.openreloc.method import STAGES

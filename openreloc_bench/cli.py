@@ -1,8 +1,9 @@
 """``openreloc-bench``: one sub-command per module in :mod:`openreloc_bench.commands` (hloc style).
 
 Each command module defines ``NAME``, ``HELP``, ``add_arguments(parser)`` and ``run(args) -> int``.
-User mistakes (:class:`~openreloc_bench.errors.OpenRelocError`) are printed as one line with a
-non-zero exit; anything else is a bug and keeps its traceback.
+User mistakes (:class:`~openreloc_bench.errors.OpenRelocError`) and file operations the system
+refuses (``OSError``: read-only file system, permissions, disk full) are printed as one line with a
+non-zero exit (``-v`` keeps the traceback of the latter); anything else is a bug and keeps its traceback.
 """
 
 from __future__ import annotations
@@ -55,6 +56,12 @@ def main(argv: list[str] | None = None) -> int:
         return int(args._run(args) or 0)
     except OpenRelocError as e:
         print(f"openreloc-bench {args.command}: error: {e}", file=sys.stderr)
+        return 2
+    except OSError as e:  # the system refused a file operation: read-only file system, permissions, disk full
+        if args.verbose:
+            raise
+        where = f": {e.filename}" if e.filename else ""
+        print(f"openreloc-bench {args.command}: error: {e.strerror or e}{where}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(f"openreloc-bench {args.command}: interrupted", file=sys.stderr)

@@ -18,6 +18,7 @@ from typing import Any, TypeVar
 
 import yaml
 
+from openreloc_bench.data import io
 from openreloc_bench.errors import ConfigError
 
 T = TypeVar("T")
@@ -41,6 +42,16 @@ def from_dict(cls: type[T], data: dict[str, Any] | None, where: str = "") -> T:
         return cls(**kwargs)
     except (TypeError, ValueError) as e:
         raise ConfigError(f"{where or cls.__name__}: {e}") from None
+
+
+def merge(base: dict[str, Any], overrides: dict[str, Any]) -> dict[str, Any]:
+    """``base`` with ``overrides`` applied key by key, recursing into nested mappings (so overriding
+    one field of a section keeps the section's other fields); neither input is modified."""
+    out = dict(base)
+    for key, value in overrides.items():
+        old = out.get(key)
+        out[key] = merge(old, value) if isinstance(value, dict) and isinstance(old, dict) else value
+    return out
 
 
 def _coerce(tp: Any, value: Any, key: str) -> Any:
@@ -115,13 +126,37 @@ def to_dict(cfg: Any) -> dict[str, Any]:
 
 
 def load_yaml(path: Path | str) -> Any:
+    """Parse a YAML file; a missing, binary, non-UTF-8 or malformed file is a one-line ConfigError."""
     path = Path(path)
     if not path.is_file():
         raise ConfigError(f"{path}: file not found")
+    text = io.read_text(path)
     try:
-        return yaml.safe_load(path.read_text())
+        return yaml.safe_load(text)
     except yaml.YAMLError as e:
         raise ConfigError(f"{path}: invalid YAML ({str(e).splitlines()[0]})") from None
+
+
+def parse_overrides(items: list[str]) -> dict[str, Any]:
+    """``["a.b=1", "c=true"]`` -> ``{"a": {"b": 1}, "c": True}`` (``--set`` values parsed as YAML)."""
+    out: dict[str, Any] = {}
+    for item in items:
+        key, sep, raw = item.partition("=")
+        if not sep or not key.strip():
+            raise ConfigError(f"--set expects KEY=VALUE, got {item!r}")
+        try:
+            value = yaml.safe_load(raw) if raw.strip() else ""
+        except yaml.YAMLError:
+            value = raw
+        node = out
+        parts = key.strip().split(".")
+        for part in parts[:-1]:
+            nxt = node.setdefault(part, {})
+            if not isinstance(nxt, dict):
+                raise ConfigError(f"--set {key}: '{part}' was already set to a value")
+            node = nxt
+        node[parts[-1]] = value
+    return out
 
 
 def dump_yaml(cfg: Any) -> str:

@@ -24,6 +24,9 @@ from openreloc_bench.data.types import SceneSequence
 from openreloc_bench.errors import ConfigError, DataError
 
 ENTRY_POINT_GROUP = "openreloc_bench.methods"
+TRACKS = ("oracle-mask", "predicted")
+"""Oracle-mask: queries and mapping frames carry the dataset's instance masks (a perfect detector).
+Predicted: neither does; a method segments for itself."""
 
 
 @dataclass

@@ -4,7 +4,7 @@ from typing import Literal
 
 import pytest
 
-from openreloc_bench.config import describe, dump_yaml, field_docs, from_dict, load_yaml
+from openreloc_bench.config import describe, dump_yaml, field_docs, from_dict, load_yaml, merge
 from openreloc_bench.errors import ConfigError
 
 
@@ -57,3 +57,15 @@ def test_invalid_yaml(tmp_path: Path):
     (tmp_path / "x.yaml").write_text("a: [1, 2\n")
     with pytest.raises(ConfigError, match="invalid YAML"):
         load_yaml(tmp_path / "x.yaml")
+
+
+def test_merge_overrides_section_by_section_without_touching_its_inputs():
+    base = {"a": 1, "inner": {"x": 1, "y": {"deep": 1, "keep": 2}}, "replaced": {"x": 1}}
+    overrides = {"inner": {"y": {"deep": 3}, "z": 4}, "replaced": 5, "new": {"k": 6}}
+    assert merge(base, overrides) == {
+        "a": 1,
+        "inner": {"x": 1, "y": {"deep": 3, "keep": 2}, "z": 4},
+        "replaced": 5,
+        "new": {"k": 6},
+    }
+    assert base["inner"]["y"] == {"deep": 1, "keep": 2} and overrides["inner"] == {"y": {"deep": 3}, "z": 4}

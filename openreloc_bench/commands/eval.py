@@ -15,15 +15,17 @@ Example:
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 
 from openreloc_bench import config
-from openreloc_bench.data import io
+from openreloc_bench.data import paths
 from openreloc_bench.data.scene import QUERY_SPLITS
 from openreloc_bench.errors import ConfigError
 from openreloc_bench.harness import runner, tables
 from openreloc_bench.harness.ablations import ABLATED_METHOD, ABLATION_ROWS, ROBUSTNESS_ROWS, ablation_label
 from openreloc_bench.harness.executors import EXECUTORS
+from openreloc_bench.harness.suites import ensure_suite_scenes
 
 NAME = "eval"
 HELP = "evaluate methods on a scene suite (maps, queries, metrics)"
@@ -44,6 +46,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--ray-address", help="existing Ray cluster (default: $RAY_ADDRESS, else a local instance)")
     p.add_argument("--resume", action="store_true", help="skip (scene, method, split) jobs that already finished")
     p.add_argument("--timeout", type=float, default=300.0, help="per-query limit in seconds (0 = none, in-process)")
+    p.add_argument(
+        "--map-timeout",
+        type=float,
+        default=3600.0,
+        help="limit on building one map, and on loading it, in seconds (0 = none, in-process)",
+    )
     p.add_argument("--ablations", action="store_true", help=f"also run the paper's ablation rows of {ABLATED_METHOD}")
     p.add_argument("--robustness", action="store_true", help="also localize the lighting 1-4 and displaced splits")
     p.add_argument(
@@ -94,50 +102,18 @@ def method_runs(names: list[str], config_files: list[str], ablations: bool) -> l
     return runs
 
 
-def _suite_specs(suite_path: Path) -> list:
-    try:
-        from generators.spec import load_suite
-    except ImportError as e:
-        raise ConfigError(f"the scene generator is not available ({e}); use --scenes with existing scenes") from None
-    return load_suite(suite_path).scene_specs()
-
-
-def suite_scene_names(suite_path: Path) -> list[str]:
-    """Names of a suite's scenes (no generation)."""
-    return [s.name for s in _suite_specs(suite_path)]
-
-
-def suite_scenes(suite_path: Path, data: Path) -> list[str]:
-    """Scene names of a suite, generating the ones missing or unfinished under ``data`` (lazy generator import)."""
-    specs = _suite_specs(suite_path)
-    from generators.spec import spec_hash
-
-    for spec in specs:
-        state = _scene_state(data / spec.name, spec_hash(spec))
-        if state == "complete":
-            continue
-        try:
-            from generators.generate import generate_scene
-        except ImportError as e:
-            raise ConfigError(
-                f"scene '{spec.name}' is missing under {data} and the generator is not available ({e})"
-            ) from None
-        print(f"generating scene {spec.name} ({state}) ...", flush=True)
-        generate_scene(spec, data, resume=state == "partial")
-    return [s.name for s in specs]
-
-
-def _scene_state(root: Path, expected_hash: str) -> str:
-    """'complete', 'partial' (same spec, frames missing: resume it) or 'missing' / 'other spec' (regenerate)."""
-    info_path = root / "scene.json"
-    if not info_path.is_file():
-        return "missing"
-    info = io.read_json(info_path)
-    if info.get("spec_hash") != expected_hash:
-        return "other spec"
-    counts = info.get("splits", {})
-    done = all(len(list((root / s / "pose").glob("*.txt"))) == n for s, n in counts.items())
-    return "complete" if counts and done else "partial"
+def scene_names(entries: list[str], data: Path) -> list[str]:
+    """``--scenes`` entries as scene names under ``data``: a plain name, or a path to a directory directly
+    inside ``data`` (a path elsewhere is refused: scenes are always read from, and named under, --data)."""
+    names = []
+    for entry in entries:
+        if entry in (".", "..") or Path(entry).name != entry:
+            p = Path(entry).resolve()
+            if p.parent != Path(data).resolve():
+                raise ConfigError(f"--scenes '{entry}' is not a scene directory directly under --data {data}")
+            entry = p.name
+        names.append(paths.plain_name(entry, "--scenes entry"))
+    return names
 
 
 def _seeds(s: str) -> list[int]:
@@ -150,18 +126,19 @@ def _seeds(s: str) -> list[int]:
 def run(args: argparse.Namespace) -> int:
     if args.workers < 1:
         raise ConfigError("--workers must be >= 1")
-    if args.timeout < 0:
-        raise ConfigError("--timeout must be >= 0 seconds")
+    for flag, value in (("--timeout", args.timeout), ("--map-timeout", args.map_timeout)):
+        if not math.isfinite(value) or value < 0:
+            raise ConfigError(f"{flag} must be a finite number of seconds >= 0, got {value}")
     splits = _csv(args.splits)
     if args.robustness:
         splits += [r.key for r in ROBUSTNESS_ROWS if r.key not in splits]
     runner.import_plugins(args.plugin)
     runs = method_runs(_csv(args.methods), args.method_config, args.ablations)
-    scenes = _csv(args.scenes) if args.scenes else suite_scenes(args.suite, args.data)
+    scenes = scene_names(_csv(args.scenes), args.data) if args.scenes else ensure_suite_scenes(args.suite, args.data)
     cfg = runner.EvalConfig(
         data=args.data, out=args.out, scenes=scenes, runs=runs, splits=splits, track=args.track,
         executor=args.executor, workers=args.workers, ray_address=args.ray_address, resume=args.resume,
-        timeout_s=args.timeout, plugins=args.plugin, seeds=_seeds(args.seeds),
+        timeout_s=args.timeout, map_timeout_s=args.map_timeout, plugins=args.plugin, seeds=_seeds(args.seeds),
     )  # fmt: skip
     report = runner.evaluate(cfg)
     queries = runner.load_run_queries(args.out)
@@ -169,6 +146,8 @@ def run(args: argparse.Namespace) -> int:
         f"maps: {report.maps_built} built, {report.maps_cached} cached; jobs: {report.jobs_run} run, "
         f"{report.jobs_skipped} resumed; {report.wall_s:.1f} s"
     )
+    if report.jobs_stale:
+        print(f"resume: {report.jobs_stale} finished job(s) were run with other settings or scenes and were recomputed")
     if not queries.empty:
         _, suite, seeds = tables.write_tables(args.out / "tables", queries, runner.load_map_records(args.out))
         print(tables.compact(suite))

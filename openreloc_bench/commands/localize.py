@@ -25,17 +25,17 @@ import numpy as np
 from tqdm import tqdm
 
 from openreloc_bench import geometry
-from openreloc_bench.commands.map import add_method_arguments, method_overrides
-from openreloc_bench.data import io
+from openreloc_bench.commands.options import add_method_arguments, method_overrides
+from openreloc_bench.data import io, paths
 from openreloc_bench.data.results import write_results
 from openreloc_bench.data.scene import QUERY_SPLITS, Scene
 from openreloc_bench.data.types import SceneSequence
-from openreloc_bench.methods import Failure, PoseEstimate, QueryFrame, Relocalizer, create_method
+from openreloc_bench.errors import ConfigError
+from openreloc_bench.methods import TRACKS, Failure, PoseEstimate, QueryFrame, Relocalizer, create_method
 
 NAME = "localize"
 HELP = "localize a query split against a map and write poses"
 ORDER = 30
-TRACKS = ("oracle-mask", "predicted")
 log = logging.getLogger(__name__)
 
 
@@ -126,6 +126,11 @@ def _json_safe(v: Any) -> Any:
 
 
 def run(args: argparse.Namespace) -> int:
+    for flag, out in (("--out", args.out), ("--diagnostics", args.diagnostics)):
+        if out is not None:
+            if out.is_dir():
+                raise ConfigError(f"{flag} {out} is a directory; give a file path")
+            paths.check_output(out, [args.scene, args.map], flag)
     method = create_method(args.method, **method_overrides(args))
     seq = Scene(args.scene).sequence(args.split)
     method.load_map(args.map)

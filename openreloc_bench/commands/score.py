@@ -14,7 +14,8 @@ from pathlib import Path
 import pandas as pd
 
 from openreloc_bench.harness import score, tables
-from openreloc_bench.harness.runner import TRACKS
+from openreloc_bench.harness.suites import suite_scene_names
+from openreloc_bench.methods import TRACKS
 
 NAME = "score"
 HELP = "score externally produced pose files against a dataset"
@@ -35,8 +36,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     if args.suite:
-        from openreloc_bench.commands.eval import suite_scene_names
-
         scenes = suite_scene_names(args.suite)
     else:
         scenes = score.submission_scenes(args.submission, args.data)

@@ -21,21 +21,55 @@ from openreloc_bench.errors import DataError
 DEPTH_SCALE_MM = 1000.0  # depth PNG stores uint16 millimetres (ScanNet convention)
 
 
+_TEMP_SUFFIX = ".tmp"
+_UMASK: int | None = None
+
+
+def _file_mode() -> int:
+    """Permissions of a new file under the process umask (``mkstemp`` alone gives 0600)."""
+    global _UMASK
+    if _UMASK is None:
+        _UMASK = os.umask(0)
+        os.umask(_UMASK)
+    return 0o666 & ~_UMASK
+
+
+def _writer_alive(temp: Path) -> bool:
+    """Whether the process that created an atomic-write temp file (pid in its name) is still running."""
+    pid = temp.name[: -len(_TEMP_SUFFIX)].rpartition(".")[2].partition("-")[0]
+    if not pid.isdigit():
+        return False
+    try:
+        os.kill(int(pid), 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
 def remove_stray_temps(root: Path | str) -> None:
-    """Delete the temp files of atomic writes a killed process never renamed (SIGKILL skips the
-    clean-up below); they are never results, so a resumed run starts from a clean tree."""
-    for p in Path(root).rglob(".*.tmp"):
-        p.unlink(missing_ok=True)
+    """Delete the temp files of atomic writes whose writer died before renaming them (SIGKILL skips
+    the clean-up in :func:`atomic_write_bytes`); they are never results, so a resumed run starts from a
+    clean tree. Temps of a live process (another run writing here) are left alone."""
+    for p in Path(root).rglob(f".*{_TEMP_SUFFIX}"):
+        if p.is_file() and not _writer_alive(p):
+            p.unlink(missing_ok=True)
 
 
 def atomic_write_bytes(path: Path | str, data: bytes) -> None:
-    """Write ``data`` to ``path`` atomically: readers see the old file or the new one, never a part."""
+    """Write ``data`` to ``path`` atomically: readers see the old file or the new one, never a part.
+
+    The temp file sits next to ``path`` (same file system, so the rename is atomic) and carries the
+    writer's pid, so clean-up never removes another live process's file in flight.
+    """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.{os.getpid()}-", suffix=_TEMP_SUFFIX)
     try:
         with os.fdopen(fd, "wb") as f:
             f.write(data)
+        os.chmod(tmp, _file_mode())
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
@@ -56,8 +90,8 @@ def read_json(path: Path | str) -> Any:
     if not path.is_file():
         raise DataError(path, "file not found")
     try:
-        return json.loads(path.read_text(encoding="utf-8"))
-    except (json.JSONDecodeError, UnicodeDecodeError) as e:
+        return json.loads(read_text(path))
+    except json.JSONDecodeError as e:
         raise DataError(path, f"not valid JSON ({e})") from None
 
 
@@ -77,6 +111,23 @@ def encode_png(image: np.ndarray) -> bytes:
 
 def write_png(path: Path | str, image: np.ndarray) -> None:
     atomic_write_bytes(path, encode_png(image))
+
+
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+_PNG_END = b"IEND\xaeB`\x82"
+
+
+def is_complete_png(path: Path | str) -> bool:
+    """True when ``path`` is a PNG file that starts with the signature and ends with its IEND chunk
+    (cheap: reads 16 bytes; catches missing, truncated and foreign files without decoding)."""
+    path = Path(path)
+    try:
+        with path.open("rb") as f:
+            head = f.read(8)
+            f.seek(-8, os.SEEK_END)
+            return head == _PNG_SIGNATURE and f.read(8) == _PNG_END
+    except OSError:
+        return False
 
 
 def _read_raw(path: Path) -> np.ndarray:
@@ -136,12 +187,23 @@ def _check_size(path: Path, img: np.ndarray, expect_hw: tuple[int, int] | None) 
         raise DataError(path, f"image is {img.shape[1]}x{img.shape[0]}, expected {expect_hw[1]}x{expect_hw[0]}")
 
 
-def data_lines(path: Path | str) -> Iterator[tuple[int, list[str]]]:
-    """(line number, whitespace-split fields) of every non-blank, non-``#`` line of a text file."""
+def read_text(path: Path | str) -> str:
+    """A text file a user gave, as str; DataError if it is missing, binary or not UTF-8."""
     path = Path(path)
     if not path.is_file():
         raise DataError(path, "file not found")
-    for lineno, raw in enumerate(path.read_text().splitlines(), 1):
+    data = path.read_bytes()
+    if b"\x00" in data:
+        raise DataError(path, "not a text file (binary content)")
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as e:
+        raise DataError(path, f"not UTF-8 text (byte {e.start}: {e.reason})") from None
+
+
+def data_lines(path: Path | str) -> Iterator[tuple[int, list[str]]]:
+    """(line number, whitespace-split fields) of every non-blank, non-``#`` line of a text file."""
+    for lineno, raw in enumerate(read_text(path).splitlines(), 1):
         line = raw.strip()
         if line and not line.startswith("#"):
             yield lineno, line.split()
@@ -150,10 +212,9 @@ def data_lines(path: Path | str) -> Iterator[tuple[int, list[str]]]:
 def read_matrix(path: Path | str, shape: tuple[int, int] = (4, 4)) -> np.ndarray:
     """A whitespace-separated matrix file (ScanNet pose / intrinsic) as float64."""
     path = Path(path)
-    if not path.is_file():
-        raise DataError(path, "file not found")
+    text = read_text(path)
     try:
-        rows = [line.split() for line in path.read_text().splitlines() if line.strip()]
+        rows = [line.split() for line in text.splitlines() if line.strip()]
         M = np.array(rows, dtype=np.float64)
     except ValueError:
         raise DataError(path, f"malformed matrix: expected {shape[0]} rows of {shape[1]} numbers") from None

@@ -67,7 +67,9 @@ def read_file_set(
 def check_format(doc: Any, path: Path, format_name: str, version: int) -> None:
     """DataError unless ``doc`` (a manifest or metadata mapping) names this format and version."""
     if not isinstance(doc, dict) or doc.get("format") != format_name:
-        raise DataError(path, f"not a {format_name} file (format {doc.get('format') if isinstance(doc, dict) else None!r})")
+        raise DataError(
+            path, f"not a {format_name} file (format {doc.get('format') if isinstance(doc, dict) else None!r})"
+        )
     if doc.get("version") != version:
         raise DataError(
             path,

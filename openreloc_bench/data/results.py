@@ -58,18 +58,20 @@ def read_results(path: Path | str) -> dict[str, np.ndarray]:
     return poses
 
 
-def write_tum(path: Path | str, poses_wc: dict[str, np.ndarray], timestamps: dict[str, float] | None = None) -> None:
+def write_tum(path: Path | str, poses_wc: dict[str, np.ndarray], timestamps: dict[str, float]) -> None:
     """TUM trajectory (``timestamp tx ty tz qx qy qz qw``, camera-to-world) for evo.
 
-    Queries have no time; by default each gets its index in name order as timestamp, so two
-    files written for the same query set align one-to-one in ``evo``.
+    Queries have no time: callers give each query a fixed stamp (its index in the split), the same in
+    the estimate and ground-truth files, so ``evo`` pairs them one to one even when queries failed.
     """
-    names = sorted(poses_wc)
-    ts = timestamps or {n: float(i) for i, n in enumerate(names)}
+    missing = sorted(set(poses_wc) - set(timestamps))
+    if missing:
+        raise ValueError(f"no timestamp for {len(missing)} pose(s), e.g. '{missing[0]}'")
+    names = sorted(poses_wc, key=lambda n: timestamps[n])
     lines = ["# timestamp tx ty tz qx qy qz qw  (camera-to-world)"]
     for n in names:
         q, t = geometry.pose_to_qt(poses_wc[n])
-        lines.append(f"{ts[n]:.6f} " + " ".join(f"{v:.10g}" for v in (*t, q[1], q[2], q[3], q[0])))
+        lines.append(f"{timestamps[n]:.6f} " + " ".join(f"{v:.10g}" for v in (*t, q[1], q[2], q[3], q[0])))
     io.atomic_write_text(path, "\n".join(lines) + "\n")
 
 

@@ -18,6 +18,7 @@ pose file last, so a frame counts as finished exactly when its pose file exists 
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -103,7 +104,9 @@ class Scene:
 
     @property
     def spec_hash(self) -> str:
-        return str(self.info.get("spec_hash", ""))
+        """The generator's spec hash; for converted real data, a hash of its ``scene.json``."""
+        own = self.info.get("spec_hash")
+        return str(own) if own else "file:" + hashlib.sha256((self.root / "scene.json").read_bytes()).hexdigest()[:12]
 
     def splits(self) -> list[str]:
         return [s for s in SPLITS if (self.root / s / "pose").is_dir()] + sorted(
@@ -111,7 +114,30 @@ class Scene:
         )
 
     def sequence(self, split: str) -> SceneSequence:
-        return read_split(self.root / split, split)
+        """One split, checked against ``scene.json`` (frame count, image size, intrinsics) where it says them."""
+        seq = read_split(self.root / split, split)
+        self._check_against_info(seq)
+        return seq
+
+    def _check_against_info(self, seq: SceneSequence) -> None:
+        where = self.root / seq.split
+        splits = self.info.get("splits")
+        expected = splits.get(seq.split) if isinstance(splits, dict) else None
+        if expected is not None and len(seq) != expected:
+            raise DataError(
+                where,
+                f"has {len(seq)} of the {expected} frames scene.json lists: the scene is incomplete "
+                "(finish it with `openreloc-bench generate SUITE --resume`)",
+            )
+        intr = self.info.get("intrinsics")
+        if not isinstance(intr, dict):
+            return
+        if (intr.get("width"), intr.get("height")) != (seq.width, seq.height):
+            raise DataError(
+                where, f"images are {seq.width}x{seq.height}, scene.json says {intr.get('width')}x{intr.get('height')}"
+            )
+        if "K" in intr and not np.allclose(np.asarray(intr["K"], dtype=float), seq.K, rtol=1e-6, atol=1e-6):
+            raise DataError(where / "intrinsic" / "intrinsic_color.txt", "intrinsics differ from scene.json's")
 
     def displacements(self) -> list[dict[str, Any]]:
         p = self.root / "query_displaced" / "displacements.json"
@@ -174,8 +200,11 @@ class SceneWriter:
         K4[:3, :3] = K
         io.atomic_write_text(self.root / split / "intrinsic" / "intrinsic_color.txt", io.format_matrix(K4))
 
-    def has_frame(self, split: str, i: int) -> bool:
-        return (self.root / split / "pose" / f"{frame_id(i)}.txt").exists()
+    def has_frame(self, split: str, i: int, images: tuple[str, ...] = ("color", "depth", "instance")) -> bool:
+        """Whether frame ``i`` is finished: its pose file (written last) and complete ``images`` PNGs exist."""
+        fid = frame_id(i)
+        d = self.root / split
+        return (d / "pose" / f"{fid}.txt").is_file() and all(io.is_complete_png(d / k / f"{fid}.png") for k in images)
 
     def write_frame(
         self,

@@ -18,9 +18,9 @@ fails that query with the exception as reason. Either way the run goes on.
 
 from __future__ import annotations
 
-import hashlib
 import importlib
 import logging
+import os
 import time
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
@@ -32,15 +32,16 @@ import pandas as pd
 from tqdm import tqdm
 
 from openreloc_bench import geometry
-from openreloc_bench.data import io
+from openreloc_bench.data import io, paths
 from openreloc_bench.data.results import write_results, write_tum
 from openreloc_bench.data.scene import Scene
 from openreloc_bench.data.types import SceneSequence
 from openreloc_bench.errors import ConfigError, DataError
 from openreloc_bench.harness import cache
-from openreloc_bench.harness.executors import make_executor, mp_context
+from openreloc_bench.harness.executors import exit_with, make_executor, mp_context
 from openreloc_bench.harness.score import Outcome, score_split
 from openreloc_bench.methods import (
+    TRACKS,
     Failure,
     PoseEstimate,
     QueryFrame,
@@ -52,7 +53,8 @@ from openreloc_bench.methods import (
 
 log = logging.getLogger(__name__)
 
-TRACKS = ("oracle-mask", "predicted")
+RESUME_KEYS = ("config_hash", "map_hash", "spec_hash", "track", "split")
+"""What a finished job's marker must agree on with the job asked for, for ``--resume`` to reuse it."""
 
 
 @dataclass
@@ -81,6 +83,10 @@ class MapJob:
     scene_dir: Path
     map_dir: Path
     spec_hash: str
+    track: str
+    """The mapping frames carry the dataset's instance masks only in the oracle-mask track."""
+    timeout_s: float
+    """Limit on building the map, in seconds; 0 = none (built in the job's own process)."""
     provenance: dict[str, Any]
     plugins: list[str]
 
@@ -95,6 +101,8 @@ class QueryJob:
     out_dir: Path
     timeout_s: float
     """Per-query limit in seconds; 0 = none (queries run in the job's own process)."""
+    map_timeout_s: float
+    """Limit on loading the map in the query worker, in seconds (used with ``timeout_s``)."""
     provenance: dict[str, Any]
     plugins: list[str]
 
@@ -155,7 +163,11 @@ def _load_method(job: QueryJob) -> tuple[Relocalizer, SceneSequence, float]:
 
 def _serve(conn: Any, job: QueryJob) -> None:
     """Query-server child: load the map once, then answer query indices until told to stop."""
-    method, seq, load_s = _load_method(job)
+    try:
+        method, seq, load_s = _load_method(job)
+    except Exception as e:  # noqa: BLE001 -- reported by the parent as this job's one-line error
+        conn.send(("error", f"{type(e).__name__}: {e}"))
+        return
     conn.send(("ready", load_s))
     while (i := conn.recv()) is not None:
         conn.send(localize_one(method, query_frame(seq, i, job.track)))
@@ -178,14 +190,18 @@ class QueryServer:
         self._proc.start()
         child.close()
         self.restarts += 1
+        if not self._conn.poll(self.job.map_timeout_s or None):
+            self._stop()
+            raise RuntimeError(f"loading the map timed out after {self.job.map_timeout_s:g} s")
         try:
-            _, load_s = self._conn.recv()
+            status, value = self._conn.recv()
         except EOFError:
-            self._proc.join()
-            raise RuntimeError(
-                f"loading the map failed in the query worker (exit code {self._proc.exitcode})"
-            ) from None
-        self.load_s += load_s
+            code = self._stop()
+            raise RuntimeError(f"loading the map failed in the query worker (exit code {code})") from None
+        if status == "error":
+            self._stop()
+            raise RuntimeError(f"loading the map failed: {value}")
+        self.load_s += value
 
     def ask(self, i: int, name: str) -> Outcome:
         if self._proc is None:
@@ -236,11 +252,46 @@ def _localize_all(job: QueryJob) -> tuple[SceneSequence, dict[str, Outcome], flo
 
 
 def run_map_job(job: MapJob) -> dict[str, Any]:
-    """Build (or reuse) one map; returns its record, or ``{"error": ...}``."""
+    """Build (or reuse) one map; returns its record, or ``{"error": ...}``.
+
+    With a time limit the map is built in a child process that is killed when the limit passes, so a
+    method hanging in ``build_map`` fails its own map instead of hanging the evaluation.
+    """
+    if job.timeout_s <= 0:
+        return _build_map(job)
+    ctx = mp_context()
+    recv, send = ctx.Pipe(duplex=False)
+    proc = ctx.Process(target=_build_map_child, args=(send, job, os.getpid()))
+    proc.start()
+    send.close()
+    try:
+        if recv.poll(job.timeout_s):
+            try:
+                return recv.recv()
+            except EOFError:
+                proc.join()
+                return {"error": f"the map worker died (exit code {proc.exitcode})"}
+        return {"error": f"building the map timed out after {job.timeout_s:g} s"}
+    finally:
+        if proc.is_alive():
+            proc.kill()
+        proc.join()
+        recv.close()
+
+
+def _build_map_child(conn: Any, job: MapJob, parent_pid: int) -> None:
+    exit_with(parent_pid)
+    conn.send(_build_map(job))
+    conn.close()
+
+
+def _build_map(job: MapJob) -> dict[str, Any]:
     try:
         import_plugins(job.plugins)
         method = create_method(job.run.method, **job.run.overrides)
+        paths.check_output(job.map_dir, [job.scene_dir], "map directory")
         mapping = Scene(job.scene_dir).sequence("mapping")
+        mapping.load_instances = job.track == "oracle-mask"
         return cache.build_map_cached(method, mapping, job.map_dir, job.spec_hash, job.provenance)
     except Exception as e:  # noqa: BLE001 -- reported per job; other jobs go on
         log.debug("map job failed", exc_info=True)
@@ -270,7 +321,9 @@ def _run_query_job(job: QueryJob) -> dict[str, Any]:
     ]
     job.out_dir.mkdir(parents=True, exist_ok=True)
     write_results(job.out_dir / f"{job.split}.txt", poses, comments)
-    write_tum(job.out_dir / f"{job.split}.tum", poses)
+    stamps = {n: float(i) for i, n in enumerate(seq.names)}  # the query's index in the split, for evo
+    write_tum(job.out_dir / f"{job.split}.tum", poses, stamps)
+    write_tum(job.out_dir / f"{job.split}.gt.tum", dict(zip(seq.names, seq.poses)), stamps)
     io.atomic_write_text(job.out_dir / f"{job.split}.queries.csv", table.to_csv(index=False))
     runtime = table["runtime_s"].to_numpy()
     record = {
@@ -318,9 +371,12 @@ class EvalConfig:
     ray_address: str | None = None
     """Existing Ray cluster (default: ``RAY_ADDRESS`` or a local instance)."""
     resume: bool = False
-    """Skip jobs whose completion marker exists (otherwise every query job is recomputed)."""
+    """Skip jobs whose completion marker exists and records the same method config, map, scene spec,
+    track and split (otherwise every query job is recomputed)."""
     timeout_s: float = 300.0
     """Per-query limit in seconds (0 = no limit, queries run in the job's process)."""
+    map_timeout_s: float = 3600.0
+    """Limit on building one map, and on loading it in a query worker, in seconds (0 = no limit)."""
     plugins: list[str] = field(default_factory=list)
     """Modules to import first (methods registered with ``methods.register``)."""
     seeds: list[int] = field(default_factory=list)
@@ -336,13 +392,16 @@ class EvalReport:
     maps_cached: int = 0
     jobs_run: int = 0
     jobs_skipped: int = 0
+    jobs_stale: int = 0
+    """Finished jobs ``--resume`` found but recomputed: they were run with other settings or scenes."""
     errors: list[str] = field(default_factory=list)
     wall_s: float = 0.0
 
 
-def scene_spec_hash(scene: Scene) -> str:
-    """The generator's spec hash, or for converted real data a hash of its scene.json."""
-    return scene.spec_hash or "file:" + hashlib.sha256((scene.root / "scene.json").read_bytes()).hexdigest()[:12]
+def map_track(method: Relocalizer, track: str) -> str:
+    """Which masks a method's map is built from: the track's, or none for methods that ignore masks
+    (``uses_instance_masks = False``), whose maps then serve both tracks."""
+    return track if getattr(method, "uses_instance_masks", True) else "mask-free"
 
 
 def plan(cfg: EvalConfig) -> tuple[list[MapJob], list[QueryJob]]:
@@ -353,23 +412,27 @@ def plan(cfg: EvalConfig) -> tuple[list[MapJob], list[QueryJob]]:
     commit = cache.git_commit()
     scenes = {}
     for name in cfg.scenes:
-        scene = Scene(cfg.data / name)
+        scene = Scene(cfg.data / paths.plain_name(name, "scene"))
         avail = scene.splits()
         for split in ["mapping", *cfg.splits]:
             if split not in avail:
                 raise DataError(scene.root, f"scene has no split '{split}' (available: {', '.join(avail)})")
+            scene.sequence(split)  # an incomplete or inconsistent scene fails here, before any work
         if cfg.track == "oracle-mask":
             for split in cfg.splits:
                 if not (scene.root / split / "instance").is_dir():
                     raise DataError(scene.root / split, "no instance masks: use --track predicted")
         scenes[name] = scene
+    for derived in ("maps", "runs", "tables"):  # what the run creates, replaces or deletes
+        paths.check_output(cfg.out / derived, [s.root for s in scenes.values()], "results folder")
     map_jobs, query_jobs = [], []
     for run, method in _seeded_runs(cfg.runs, cfg.seeds):
         mcfg = method_config(method)
         chash = cache.config_hash(mcfg)
-        map_hash = cache.config_hash(map_config(method))
+        masks = map_track(method, cfg.track)
+        map_hash = cache.config_hash({**map_config(method), "masks": masks})
         for name, scene in scenes.items():
-            spec = scene_spec_hash(scene)
+            spec = scene.spec_hash
             map_dir = cfg.out / "maps" / run.method / map_hash / name
             prov = {
                 "method": run.label,
@@ -383,11 +446,22 @@ def plan(cfg: EvalConfig) -> tuple[list[MapJob], list[QueryJob]]:
                 "spec_hash": spec,
                 "git_commit": commit,
             }
-            map_jobs.append(MapJob(run, scene.root, map_dir, spec, prov, cfg.plugins))
+            map_jobs.append(MapJob(run, scene.root, map_dir, spec, masks, cfg.map_timeout_s, prov, cfg.plugins))
             for split in cfg.splits:
                 out_dir = cfg.out / "runs" / run.label / cfg.track / name
                 query_jobs.append(
-                    QueryJob(run, scene.root, split, cfg.track, map_dir, out_dir, cfg.timeout_s, prov, cfg.plugins)
+                    QueryJob(
+                        run,
+                        scene.root,
+                        split,
+                        cfg.track,
+                        map_dir,
+                        out_dir,
+                        cfg.timeout_s,
+                        cfg.map_timeout_s,
+                        prov,
+                        cfg.plugins,
+                    )
                 )
     return map_jobs, query_jobs
 
@@ -419,12 +493,28 @@ def _seeded_runs(runs: list[MethodRun], seeds: list[int]) -> list[tuple[MethodRu
 
 
 def evaluate(cfg: EvalConfig) -> EvalReport:
-    """Run an evaluation; per-job errors are collected in the report, the run goes on."""
+    """Run an evaluation; per-job errors are collected in the report, the run goes on.
+
+    The results folder is locked for the whole run: a second evaluation on it fails at once.
+    """
+    map_jobs, query_jobs = plan(cfg)
+    with paths.directory_lock(cfg.out, "openreloc-bench eval"):
+        return _evaluate(cfg, map_jobs, query_jobs)
+
+
+def finished(job: QueryJob) -> bool:
+    """Whether ``job``'s marker exists and records the config, map, scene spec, track and split asked for."""
+    if not job.marker.is_file():
+        return False
+    done = io.read_json(job.marker)
+    want = {**job.provenance, "track": job.track, "split": job.split}
+    return all(done.get(k) == want[k] for k in RESUME_KEYS)
+
+
+def _evaluate(cfg: EvalConfig, map_jobs: list[MapJob], query_jobs: list[QueryJob]) -> EvalReport:
     t0 = time.perf_counter()
     report = EvalReport()
-    map_jobs, query_jobs = plan(cfg)
-    if cfg.out.exists():
-        io.remove_stray_temps(cfg.out)
+    io.remove_stray_temps(cfg.out)
     # several variants may share a map (same method config): build each distinct map dir once
     unique: dict[Path, MapJob] = {}
     for j in map_jobs:
@@ -445,10 +535,12 @@ def evaluate(cfg: EvalConfig) -> EvalReport:
     for j in query_jobs:
         if j.map_dir in failed_maps:
             continue
-        if cfg.resume and j.marker.is_file():
+        if cfg.resume and finished(j):
             report.jobs_skipped += 1
-        else:
-            todo.append(j)
+            continue
+        if cfg.resume and j.marker.is_file():
+            report.jobs_stale += 1
+        todo.append(j)
     for job, rec in tqdm(executor.map(run_query_job, todo), total=len(todo), desc="queries", disable=not todo):
         if "error" in rec:
             report.errors.append(f"{job.run.label}/{job.scene_dir.name}/{job.split}: {rec['error']}")
@@ -475,7 +567,7 @@ def load_run_queries(out: Path) -> pd.DataFrame:
 
 
 def load_map_records(out: Path) -> pd.DataFrame:
-    """Mapping time and map size of every cached map, one row per (map config hash, scene)."""
+    """Mapping time and map size of every cached map, one row per (map hash, scene)."""
     rows = [
         {
             "map_hash": p.parent.name,

@@ -73,11 +73,15 @@ def outcomes_from_file(path: Path) -> dict[str, Outcome]:
     return {n: Outcome(n, T) for n, T in read_results(path).items()}
 
 
-def submission_outcomes(submission: Path, scene: str, seq: SceneSequence) -> dict[str, Outcome] | None:
+def submission_outcomes(
+    submission: Path, scene: str, seq: SceneSequence, scene_splits: list[str]
+) -> dict[str, Outcome] | None:
     """The estimates a map-free-style submission holds for one split of one scene, or None if it has no file.
 
     Accepted layouts: ``<scene>/<split>.txt`` (names ``<split>/<id>``) or one ``<scene>.txt`` with the
-    names of every split (only the names of ``seq.split`` are taken from it).
+    names of every split (``scene_splits``; only the names of ``seq.split`` are taken from it). A name
+    that is not a query of the scene is an error, never silently dropped: a typo in the split part
+    (``Query/000001``) would otherwise lose every estimate.
     """
     per_split = submission / scene / f"{seq.split}.txt"
     per_scene = submission / f"{scene}.txt"
@@ -85,6 +89,13 @@ def submission_outcomes(submission: Path, scene: str, seq: SceneSequence) -> dic
         path, found = per_split, outcomes_from_file(per_split)
     elif per_scene.is_file():
         path, found = per_scene, outcomes_from_file(per_scene)
+        foreign = sorted(n for n in found if n.split("/", 1)[0] not in scene_splits)
+        if foreign:
+            raise DataError(
+                path,
+                f"{len(foreign)} name(s) name no split of scene '{scene}', e.g. '{foreign[0]}' "
+                f"(splits: {', '.join(scene_splits)}; expected names like '{seq.names[0]}')",
+            )
         found = {n: o for n, o in found.items() if n.split("/", 1)[0] == seq.split}
     else:
         return None
@@ -117,7 +128,6 @@ def score_submission(
     """
     from openreloc_bench.data.scene import Scene
     from openreloc_bench.harness.cache import git_commit
-    from openreloc_bench.harness.runner import scene_spec_hash
 
     if not submission.is_dir():
         raise DataError(submission, "submission directory not found")
@@ -126,7 +136,7 @@ def score_submission(
         scene = Scene(data / name)
         for split in splits:
             seq = scene.sequence(split)
-            outcomes = submission_outcomes(submission, name, seq) or {}
+            outcomes = submission_outcomes(submission, name, seq, scene.splits()) or {}
             df = score_split(seq, outcomes)
             meta = {
                 "method": method,
@@ -135,7 +145,7 @@ def score_submission(
                 "split": split,
                 "config_hash": "submission",
                 "map_hash": "submission",
-                "spec_hash": scene_spec_hash(scene),
+                "spec_hash": scene.spec_hash,
                 "git_commit": git_commit(),
             }
             for i, (k, v) in enumerate(meta.items()):

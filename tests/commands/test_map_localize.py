@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from openreloc_bench.cli import main
-from openreloc_bench.commands.map import parse_overrides
+from openreloc_bench.config import parse_overrides
 from openreloc_bench.data.results import read_results
 from openreloc_bench.errors import ConfigError
 from openreloc_bench.methods import Failure, NearestFrame, register

@@ -40,7 +40,7 @@ def test_round_trip_is_verified_and_byte_identical(tmp_path: Path) -> None:
         (lambda d: (d / "meta.json").write_text('{"k": 2, "name": "x"}\n'), "meta.json: checksum"),
         (lambda d: (d / "meta.json").unlink(), "meta.json: file not found"),
         (lambda d: (d / mapfile.MANIFEST).unlink(), "manifest.json: missing: no test-map here"),
-        (lambda d: (d / mapfile.MANIFEST).write_bytes(b"\xff\xfe binary"), "manifest.json: not valid JSON"),
+        (lambda d: (d / mapfile.MANIFEST).write_bytes(b"\xff\xfe binary"), "manifest.json: not UTF-8 text"),
     ],
 )
 def test_damaged_file_sets_fail_with_one_line_naming_the_file(tmp_path: Path, damage, message: str) -> None:

@@ -32,10 +32,23 @@ def test_round_trip_and_convention(tmp_path: Path, poses):
 
 
 def test_tum_export_round_trip(tmp_path: Path, poses):
-    write_tum(tmp_path / "t.txt", poses)
+    stamps_in = {n: float(i) for i, n in enumerate(sorted(poses))}
+    write_tum(tmp_path / "t.txt", poses, stamps_in)
     stamps, T = read_tum_trajectory(tmp_path / "t.txt")
     assert stamps.tolist() == [0.0, 1.0, 2.0, 3.0, 4.0]
     np.testing.assert_allclose(T, np.stack([poses[k] for k in sorted(poses)]), atol=1e-8)
+
+
+def test_tum_export_keeps_each_query_stamp_when_others_are_missing(tmp_path: Path, poses):
+    """Stamps are the query's own (its index in the split), never its rank among the estimates."""
+    names = sorted(poses)
+    stamps_in = {n: float(i) for i, n in enumerate(names)}
+    write_tum(tmp_path / "t.txt", {n: poses[n] for n in names[2:]}, stamps_in)
+    stamps, T = read_tum_trajectory(tmp_path / "t.txt")
+    assert stamps.tolist() == [2.0, 3.0, 4.0]
+    np.testing.assert_allclose(T[0], poses[names[2]], atol=1e-8)
+    with pytest.raises(ValueError, match="no timestamp"):
+        write_tum(tmp_path / "u.txt", poses, {})
 
 
 @pytest.mark.parametrize(

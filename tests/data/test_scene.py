@@ -1,4 +1,6 @@
 import json
+import os
+import stat
 from pathlib import Path
 
 import numpy as np
@@ -52,6 +54,27 @@ def test_stray_temps_of_a_killed_writer_are_removed(tmp_path: Path):
     stray.write_bytes(b"partial")
     io.remove_stray_temps(tmp_path)
     assert not stray.exists() and (tmp_path / "a" / "kept.png").read_bytes() == b"x"
+
+
+def test_temps_of_a_live_writer_are_kept_and_dead_ones_removed(tmp_path: Path):
+    """Clean-up must not remove another running process's file in flight (its pid is in the name)."""
+    live = tmp_path / f".000001.png.{os.getpid()}-abcd1234.tmp"
+    dead = tmp_path / ".000002.png.999999999-abcd1234.tmp"
+    for p in (live, dead):
+        p.write_bytes(b"partial")
+    io.remove_stray_temps(tmp_path)
+    assert live.exists() and not dead.exists()
+
+
+def test_written_files_honour_the_umask(tmp_path: Path):
+    old = os.umask(0o027)
+    try:
+        io._UMASK = None  # read the umask again
+        io.atomic_write_bytes(tmp_path / "f.txt", b"x")
+    finally:
+        os.umask(old)
+        io._UMASK = None
+    assert stat.S_IMODE((tmp_path / "f.txt").stat().st_mode) == 0o640
 
 
 def _first(scene: Path, sub: str) -> Path:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -17,6 +18,7 @@ from generators.generate import generate_scene, generate_suite
 from generators.spec import SceneSpec, load_suite, spec_hash
 from openreloc_bench import config, geometry
 from openreloc_bench.data.scene import SPLITS, STRUCTURAL_CATEGORIES, Scene
+from openreloc_bench.errors import DataError
 
 TINY = dict(
     name="tiny",
@@ -159,3 +161,21 @@ def test_resume_after_kill(tmp_path: Path) -> None:
     assert not [p for p in (out / "tiny").rglob("*") if p.name.endswith(".tmp")]
     fresh = generate_scene(SceneSpec(**spec), tmp_path / "fresh", progress=False)
     assert _files(fresh) == _files(out / "tiny")  # resumed output equals an uninterrupted run
+
+
+def test_resume_redoes_truncated_and_missing_images(tmp_path: Path, tiny: Path) -> None:
+    copy = tmp_path / "tiny"
+    shutil.copytree(tiny, copy)
+    color, depth = copy / "mapping" / "color" / "000002.png", copy / "query" / "depth" / "000001.png"
+    color.write_bytes(color.read_bytes()[:-100])
+    depth.unlink()
+    generate_scene(SceneSpec(**TINY), tmp_path, resume=True, progress=False)
+    assert _files(copy) == _files(tiny)
+
+
+def test_an_incomplete_scene_is_refused_with_one_line(tmp_path: Path, tiny: Path) -> None:
+    copy = tmp_path / "tiny"
+    shutil.copytree(tiny, copy)
+    (copy / "query" / "pose" / "000003.txt").unlink()  # as a killed `generate` leaves it
+    with pytest.raises(DataError, match="has 3 of the 4 frames scene.json lists: the scene is incomplete"):
+        Scene(copy).sequence("query")

@@ -37,6 +37,8 @@ class OracleConfig:
     """Query name on which localize raises."""
     hang_on: str = ""
     """Query name on which localize sleeps for an hour."""
+    hang_in: str = ""
+    """``build_map`` or ``load_map``: that call sleeps for an hour."""
     delay_s: float = 0.0
     """Sleep per query (to make runs slow enough to kill)."""
     expect_track: str = ""
@@ -60,10 +62,14 @@ class NoisyOracle:
         return {"map_tag": self.config.map_tag}
 
     def build_map(self, mapping: SceneSequence, map_dir: Path) -> None:
+        if self.config.hang_in == "build_map":
+            time.sleep(3600)
         root = mapping.records[0].color_path.parents[2]
         io.write_json(Path(map_dir) / "oracle.json", {"scene_root": str(root), "map_tag": self.config.map_tag})
 
     def load_map(self, map_dir: Path) -> None:
+        if self.config.hang_in == "load_map":
+            time.sleep(3600)
         self._root = Path(io.read_json(Path(map_dir) / "oracle.json")["scene_root"])
 
     def localize(self, query: QueryFrame) -> PoseEstimate | Failure:

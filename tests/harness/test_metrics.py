@@ -66,8 +66,9 @@ def test_errors_match_evo_ape_from_tum_exports(tmp_path) -> None:
         gt[n] = geometry.make_pose(R, rng.uniform(-5, 5, 3))
         dR = geometry.quat_to_rotmat(geometry.quat_canonical(np.r_[1.0, rng.normal(scale=0.3, size=3)]))
         est[n] = geometry.make_pose(R @ dR, gt[n][:3, 3] + rng.normal(scale=0.4, size=3))
-    write_tum(tmp_path / "gt.tum", gt)
-    write_tum(tmp_path / "est.tum", est)
+    stamps = {n: float(i) for i, n in enumerate(names)}
+    write_tum(tmp_path / "gt.tum", gt, stamps)
+    write_tum(tmp_path / "est.tum", est, stamps)
     ref = file_interface.read_tum_trajectory_file(str(tmp_path / "gt.tum"))
     traj = file_interface.read_tum_trajectory_file(str(tmp_path / "est.tum"))
     ours_t, ours_r = geometry.pose_errors(np.stack([gt[n] for n in names]), np.stack([est[n] for n in names]))

@@ -43,6 +43,7 @@ def test_eval_writes_poses_tum_tables_and_provenance(data_dir: Path, tmp_path: P
             "fail_on": "",
             "raise_on": "",
             "hang_on": "",
+            "hang_in": "",
             "delay_s": 0.0,
             "expect_track": "",
             "map_tag": "",

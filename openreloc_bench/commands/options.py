@@ -1,0 +1,34 @@
+"""Arguments several commands share (not a command itself: it has no ``NAME``)."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+from openreloc_bench import config
+from openreloc_bench.errors import ConfigError
+
+
+def add_method_arguments(p: argparse.ArgumentParser) -> None:
+    """``--method``, ``--config`` and ``--set``: shared by ``map`` and ``localize``."""
+    p.add_argument("--method", required=True, help="registered method name (see `openreloc-bench methods`)")
+    p.add_argument("--config", type=Path, help="YAML mapping of method config fields")
+    p.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override one config field (dotted keys for nested sections; YAML values); repeatable",
+    )
+
+
+def method_overrides(args: argparse.Namespace) -> dict[str, Any]:
+    """The method config from ``--config`` then ``--set`` (later wins)."""
+    base = config.load_yaml(args.config) if args.config else {}
+    if base is None:
+        base = {}
+    if not isinstance(base, dict):
+        raise ConfigError(f"{args.config}: expected a mapping of config fields")
+    return config.merge(base, config.parse_overrides(args.overrides))

@@ -1,0 +1,65 @@
+"""Suites on disk: the scenes a suite names, and generating the ones missing or unfinished under DATA.
+
+The generator is imported lazily, so scoring existing scenes works where it is not installed.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from openreloc_bench.data import io
+from openreloc_bench.data.scene import SceneWriter
+from openreloc_bench.errors import ConfigError
+
+
+def suite_specs(suite_path: Path) -> list[Any]:
+    """The suite's scene specs (``generators.spec.SceneSpec``), validated."""
+    try:
+        from generators.spec import load_suite
+    except ImportError as e:
+        raise ConfigError(f"the scene generator is not available ({e}); use --scenes with existing scenes") from None
+    return load_suite(suite_path).scene_specs()
+
+
+def suite_scene_names(suite_path: Path) -> list[str]:
+    """Names of a suite's scenes (no generation)."""
+    return [s.name for s in suite_specs(suite_path)]
+
+
+def ensure_suite_scenes(suite_path: Path, data: Path) -> list[str]:
+    """Scene names of a suite, generating the missing ones and resuming the unfinished ones under ``data``.
+
+    A scene of the same name generated from another spec is never replaced: that is the user's data.
+    """
+    specs = suite_specs(suite_path)
+    from generators.spec import spec_hash
+
+    for spec in specs:
+        state = scene_state(data / spec.name, spec_hash(spec))
+        if state == "complete":
+            continue
+        if state == "other spec":
+            raise ConfigError(
+                f"{data / spec.name} was generated from another spec than {suite_path} asks for; "
+                "move it away or use another --data"
+            )
+        from generators.generate import generate_scene
+
+        print(f"generating scene {spec.name} ({state}) ...", flush=True)
+        generate_scene(spec, data, resume=state == "partial")
+    return [s.name for s in specs]
+
+
+def scene_state(root: Path, expected_hash: str) -> str:
+    """'complete', 'partial' (same spec, frames missing or damaged: resume it), 'missing' or 'other spec'."""
+    info_path = root / "scene.json"
+    if not info_path.is_file():
+        return "missing" if not root.exists() or not any(root.iterdir()) else "other spec"
+    info = io.read_json(info_path)
+    if info.get("spec_hash") != expected_hash:
+        return "other spec"
+    counts = info.get("splits", {})
+    writer = SceneWriter(root)
+    done = all(writer.has_frame(s, i) for s, n in counts.items() for i in range(n))
+    return "complete" if counts and done else "partial"

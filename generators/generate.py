@@ -14,6 +14,7 @@ import shutil
 from concurrent.futures import Future, ProcessPoolExecutor, ThreadPoolExecutor, as_completed
 from dataclasses import asdict
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from tqdm import tqdm
@@ -168,6 +169,23 @@ def _worker(spec_dict: dict, out_dir: str, resume: bool) -> str:
     return str(generate_scene(spec, out_dir, resume=resume, progress=False))
 
 
+def generate_scenes(
+    specs: list[SceneSpec], out_dir: Path | str, resume: bool = False, workers: int = 1, desc: str = "scenes"
+) -> list[Path]:
+    """Generate ``specs`` into ``out_dir`` in ``workers`` spawned processes; returns the scene dirs in order.
+
+    Always out of process, even with one worker: the caller (a trainer, an environment) never holds a
+    GL context, which torch and forked workers do not survive.
+    """
+    done: dict[str, Path] = {}
+    ctx = mp.get_context("spawn")
+    with ProcessPoolExecutor(max_workers=max(1, workers), mp_context=ctx) as pool:
+        futures = {pool.submit(_worker, config.to_dict(s), str(out_dir), resume): s.name for s in specs}
+        for fut in tqdm(as_completed(futures), total=len(futures), desc=desc, unit="scene"):
+            done[futures[fut]] = Path(fut.result())
+    return [done[s.name] for s in specs]
+
+
 def generate_suite(
     suite: SuiteSpec, out_dir: Path | str, resume: bool = False, workers: int = 1, only: list[str] | None = None
 ) -> list[Path]:
@@ -185,10 +203,29 @@ def generate_suite(
         return [
             generate_scene(s, out_dir, resume=resume, progress=True) for s in tqdm(specs, desc=suite.name, unit="scene")
         ]
-    done: dict[str, Path] = {}
-    ctx = mp.get_context("spawn")
-    with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
-        futures = {pool.submit(_worker, config.to_dict(s), str(out_dir), resume): s.name for s in specs}
-        for fut in tqdm(as_completed(futures), total=len(futures), desc=suite.name, unit="scene"):
-            done[futures[fut]] = Path(fut.result())
-    return [done[s.name] for s in specs]
+    return generate_scenes(specs, out_dir, resume, workers, suite.name)
+
+
+def training_specs(
+    prefix: str, seeds: list[int], width: int, height: int, with_floors: bool = False, **overrides: Any
+) -> list[SceneSpec]:
+    """Specs of scenes for training models, one per seed of the reserved training range: two single-room
+    scenes for each three-room one; with ``with_floors``, every fifth a two-floor house (stairs, landings).
+    ``overrides``: further :class:`SceneSpec` fields for every scene."""
+    from generators.spec import TRAINING_SEED_MIN, VALIDATION_SEED_MIN
+
+    specs = []
+    for i, seed in enumerate(seeds):
+        if not TRAINING_SEED_MIN <= seed < VALIDATION_SEED_MIN:
+            raise ConfigError(
+                f"training scene seed {seed} is outside the training range [{TRAINING_SEED_MIN}, "
+                f"{VALIDATION_SEED_MIN}): lower --seed or the number of scenes"
+            )
+        kind, rooms, floors = ("multi-room", 3, 1) if i % 3 == 2 else ("single-room", 1, 1)
+        if with_floors and i % 5 == 4:
+            kind, rooms, floors = "multi-floor", 4, 2
+        spec = dict(
+            name=f"{prefix}-{seed}", kind=kind, seed=seed, rooms=rooms, floors=floors, width=width, height=height
+        )
+        specs.append(config.from_dict(SceneSpec, {**spec, **overrides}))
+    return specs

@@ -71,55 +71,17 @@ def _scene_dirs(root: Path) -> list[Path]:
     return sorted(p for p in root.iterdir() if (p / "scene.json").is_file()) if root.is_dir() else []
 
 
-def _generate_one(spec_dict: dict, root: str) -> str:
-    """Process-pool worker (spawned: no GL context is inherited); resumes a partly written scene."""
-    from generators.generate import generate_scene
-    from generators.spec import SceneSpec
-    from openreloc_bench import config as cfgmod
-
-    return str(generate_scene(cfgmod.from_dict(SceneSpec, spec_dict), root, resume=True, progress=False))
-
-
 def _generate(root: Path, prefix: str, seeds: list[int], args: argparse.Namespace) -> list[Path]:
-    """Generate (or finish) one scene per reserved seed, two single-room scenes per 3-room one."""
-    import multiprocessing as mp
-    from concurrent.futures import ProcessPoolExecutor
-
-    from tqdm import tqdm
-
-    from openreloc_bench import config as cfgmod
-
+    """Generate (or finish) one scene per reserved seed, in spawned processes."""
     try:
-        from generators.spec import TRAINING_SEED_MIN, VALIDATION_SEED_MIN, SceneSpec
+        from generators.generate import generate_scenes, training_specs
     except ImportError as e:
         raise ConfigError(
             f"the scene generator is not available ({e}); pass --data with train/ and eval/ scenes"
         ) from None
-    specs = []
-    for i, seed in enumerate(seeds):
-        if not TRAINING_SEED_MIN <= seed < VALIDATION_SEED_MIN:
-            raise ConfigError(
-                f"training scene seed {seed} is outside the training range [{TRAINING_SEED_MIN}, "
-                f"{VALIDATION_SEED_MIN}): lower --seed or --scenes / --eval-scenes"
-            )
-        kind = "multi-room" if i % 3 == 2 else "single-room"
-        specs.append(
-            SceneSpec(
-                name=f"{prefix}-{seed}",
-                kind=kind,
-                seed=seed,
-                rooms=3 if kind == "multi-room" else 1,
-                width=args.width,
-                height=args.height,
-                max_mapping_frames=24,
-                n_query=8,
-                n_displaced=0,
-            )
-        )
+    specs = training_specs(prefix, seeds, args.width, args.height, max_mapping_frames=24, n_query=8, n_displaced=0)
     root.mkdir(parents=True, exist_ok=True)
-    with ProcessPoolExecutor(max_workers=max(1, args.workers), mp_context=mp.get_context("spawn")) as pool:
-        futures = [pool.submit(_generate_one, cfgmod.to_dict(sp), str(root)) for sp in specs]
-        return [Path(f.result()) for f in tqdm(futures, desc=f"{prefix} scenes", unit="scene")]
+    return generate_scenes(specs, root, resume=True, workers=args.workers, desc=f"{prefix} scenes")
 
 
 def run(args: argparse.Namespace) -> int:

@@ -96,7 +96,8 @@ class SceneSequence:
 
     @property
     def has_instances(self) -> bool:
-        return bool(self.records) and all(r.instance_path is not None for r in self.records)
+        """Whether every frame gives its instance image (not when ``load_instances`` is off: predicted track)."""
+        return self.load_instances and bool(self.records) and all(r.instance_path is not None for r in self.records)
 
     def subset(self, indices: list[int] | range) -> SceneSequence:
         """A view on some frames (e.g. the ScanNet stride split), sharing paths, not copies."""

@@ -44,7 +44,8 @@ class MappingConfig:
 
     instances_from: Literal["auto", "masks", "segmenter"] = "auto"
     """'masks': vote the dataset instance masks (oracle track); 'segmenter': cluster the segmenter's
-    masks; 'auto': the segmenter when one is given, else the masks."""
+    masks; 'auto': the dataset masks when the mapping frames carry them (oracle-mask track), else the
+    segmenter's (predicted track)."""
     landmark_voxel: float = 0.04
     """Landmark points kept in the map are voxel-downsampled to this spacing (m)."""
     max_landmark_points: int = 1500
@@ -120,7 +121,8 @@ def build_object_map(
         desc, n_crops = compute_descriptors(mapping_seq, sightings, ids, encoder, config.descriptors, progress)
     with timer("filtering"):
         invalid, freq = invalid_landmarks(rfs, ids, config.filtering, {i: rec.points[sets[i]] for i in ids})
-    categories = _categories(mapping_seq, sets, gt_labels, by_id=source == "masks")
+    # ground-truth categories name oracle landmarks in explanations; a predicted map carries none
+    categories = _categories(mapping_seq, sets) if source == "masks" else {}
     rng = np.random.default_rng(config.seed)
     landmarks = {}
     for i in ids:
@@ -200,22 +202,7 @@ def _reference_labels(
     return None, None
 
 
-def _categories(
-    seq: SceneSequence, sets: dict[int, np.ndarray], gt_labels: np.ndarray | None, by_id: bool
-) -> dict[int, str]:
-    """Landmark -> ground-truth category (diagnostics only): the dataset id's own category for oracle
-    landmarks (``by_id``), else that of the ground-truth instance most of its points belong to."""
+def _categories(seq: SceneSequence, sets: dict[int, np.ndarray]) -> dict[int, str]:
+    """Landmark -> its dataset instance's category (oracle landmarks carry the dataset id)."""
     objects = _objects(seq)
-    if by_id:
-        return {i: objects[i].category for i in sets if i in objects}
-    out: dict[int, str] = {}
-    if gt_labels is None:
-        return out
-    for i, idx in sets.items():
-        ids, counts = np.unique(gt_labels[idx], return_counts=True)
-        fg = ids > 0
-        if fg.any():
-            gid = int(ids[fg][np.argmax(counts[fg])])
-            if gid in objects:
-                out[i] = objects[gid].category
-    return out
+    return {i: objects[i].category for i in sets if i in objects}

@@ -5,6 +5,8 @@ Three stages go beyond the paper, each with a switch: geometric verification of 
 (:mod:`.consistency`, ``consistency.enabled``), and restarts of the chosen refinement from orbiting
 starts (basin hopping, ``refinement.restart_degrees``).
 
+``openreloc-paper`` (:mod:`.paper`) is this class with these three, and every other addition, switched off.
+
 ``OpenReLoc(**overrides)`` takes :class:`OpenReLocConfig` fields (nested sections as dicts), so the
 harness, the CLI's ``--set`` and YAML configs all build it the same way. Every ablation of the
 paper's table is a field: ``no_refine``, ``no_coarse``, ``no_scene_graph``, ``no_language``,
@@ -89,13 +91,11 @@ class OpenReLocConfig:
     """Keyword arguments of the predicted-track segmenter."""
     min_mask_frac: float = 0.0005
     """Query objects covering less than this share of the image are ignored (too small to crop, embed
-    or align). A share, not a pixel count, so that low-resolution scenes keep their objects: 154 px at
-    640x480, 10 px at 160x120 (a fixed 150 px dropped most objects of the smoke scene when it rendered
-    at 160x120; its R@50 went from 50% to 75% with the share, with the encoder of that time)."""
+    or align). A share, not a pixel count, so that low-resolution scenes keep their objects (the default
+    is 154 px at 640x480, 10 px at 160x120, where a fixed pixel count dropped most objects)."""
     max_objects: int = 16
-    """At most this many query objects (the most unique) are matched, which bounds latency (measured on
-    90 gen2 multi-room queries: 12 -> 16 gains 4.4 points R@50 -- walls, being unique, filled the 12
-    places -- and 24 gains nothing more)."""
+    """At most this many query objects (the most unique) are matched, which bounds latency. Walls are
+    unique too and take places, so a smaller cap leaves furniture out."""
     min_objects: int = 3
     """Fewer detected (or unique) objects than this: the query fails (the pose is under-constrained)."""
     min_matches: int = 3
@@ -153,18 +153,16 @@ class OpenReLoc:
             "encoder_weights": encoder_fingerprint(cfg.encoder, cfg.encoder_options),
             "mapping": dataclasses.asdict(cfg.mapping),
         }
-        if cfg.mapping.instances_from == "segmenter":
+        if cfg.mapping.instances_from != "masks":  # the segmenter makes the map where frames carry no masks
             out.update(segmenter=cfg.segmenter, segmenter_options=cfg.segmenter_options)
         return out
 
     def build_map(self, mapping: SceneSequence, map_dir: Path) -> None:
         cfg = self.config
         encoder = create_encoder(cfg.encoder, **cfg.encoder_options)
-        segmenter = (
-            create_segmenter(cfg.segmenter, **cfg.segmenter_options)
-            if cfg.mapping.instances_from == "segmenter"
-            else None
-        )
+        source = cfg.mapping.instances_from
+        own_masks = source == "segmenter" or (source == "auto" and not mapping.has_instances)
+        segmenter = create_segmenter(cfg.segmenter, **cfg.segmenter_options) if own_masks else None
         build_object_map(mapping, cfg.mapping, encoder, segmenter).save(map_dir)
 
     def load_map(self, map_dir: Path) -> None:
@@ -434,7 +432,8 @@ class OpenReLoc:
     ) -> list[tuple[str, list[Match], np.ndarray]]:
         """The further verification modes worth refining (``verification.refined_modes``): those whose
         unrefined pose explains the query best by render-and-compare, or, with it switched off, the
-        RANSAC's next best. Drawing a pose costs ~1.5 ms, refining one ~0.1 s."""
+        RANSAC's next best. Drawing a pose is far cheaper than refining it, so many are screened for a few
+        refined."""
         cfg = self.config
         room = max(0, cfg.verification.refined_modes - 1)
         if len(alternatives) <= room:
@@ -618,7 +617,7 @@ class OpenReLoc:
 def _blas_controller() -> ThreadpoolController:
     """numpy's and scipy's BLAS libraries, limited to one thread during a query: a query's BLAS calls are
     small (hundreds of rows), but OpenBLAS's idle workers busy-wait after each call and take the cores
-    from torch. Measured on the 2-core machine: MiniLM on a query's 8 phrases 83 -> 34 ms."""
+    from torch (the text encoder's forward pass then runs at less than half its speed)."""
     return ThreadpoolController()
 
 
@@ -647,7 +646,7 @@ def verification_evidence(
     by ``scores`` (object x landmark row: the visual cosine, or the place prior's), without invalid
     landmarks. Objects the association left out get none: it drops an object whose best landmark is a
     filtered wall or floor (the object is one), and the verification must not give it a look-alike
-    instead (measured on the smoke scene: walls re-matched to a fan and a window, 3 of 8 queries lost)."""
+    instead (a wall re-matched to a fan or a window drags the pose)."""
     row_of = {lid: r for r, lid in enumerate(ids)}
     out = []
     for q, o in enumerate(objects):

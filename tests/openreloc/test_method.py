@@ -444,9 +444,15 @@ def test_map_config_ignores_query_time_settings() -> None:
         {"no_refine": True},
         {"verification": {"enabled": False}},
         {"coarse": {"top_frames": 1}},
-        {"segmenter": "noisy-gt"},
     ):
         assert create_method("openreloc", **query_time).map_config() == base
+    # the segmenter makes predicted-track maps; maps voted from the dataset masks do not depend on it
+    assert create_method("openreloc", segmenter="noisy-gt").map_config() != base
+    voted = {"mapping": {"instances_from": "masks"}}
+    assert (
+        create_method("openreloc", segmenter="noisy-gt", **voted).map_config()
+        == create_method("openreloc", **voted).map_config()
+    )
     assert create_method("openreloc", mapping={"fusion": {"voxel_size": 0.05}}).map_config() != base
     assert create_method("openreloc", encoder_options={"weights": "elsewhere"}).map_config() != base
 

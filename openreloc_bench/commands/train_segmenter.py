@@ -1,0 +1,159 @@
+"""Train the learned segmenter (``segmenter: learned``) on generated training scenes.
+
+Generates its own scenes from the seeds reserved for training (never a benchmark or validation
+scene): ``--scenes`` to train on and ``--eval-scenes`` more, from a disjoint part of the range, on
+which the boundary threshold is chosen and the card's held-out metrics are measured. Writes a
+weights directory (``model.pt``, ``card.json``, ``manifest.json``) to use as
+``segmenter_options: {weights: DIR}``. Everything follows from ``--seed``; a killed run resumes from
+its last checkpoint when started again with the same arguments.
+
+  openreloc-bench train-segmenter --out weights/segmenter --device cuda
+"""
+
+from __future__ import annotations
+
+import argparse
+import platform
+import time
+from pathlib import Path
+
+from openreloc_bench.errors import ConfigError
+
+NAME = "train-segmenter"
+HELP = "train the learned class-agnostic segmenter on generated training scenes"
+ORDER = 61
+
+TRAIN_SEED_OFFSET = 200_000
+EVAL_SEED_OFFSET = 700_000
+"""Training scenes use seeds TRAINING_SEED_MIN + TRAIN_SEED_OFFSET + 1000 * seed + i, evaluation scenes
+TRAINING_SEED_MIN + EVAL_SEED_OFFSET + ...: disjoint from each other and from the encoder's scenes."""
+THRESHOLDS = (0.05, 0.1, 0.2, 0.3, 0.4, 0.5)
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    # the defaults are the recipe of the shipped weights (openreloc_bench/vision/weights/segmenter/card.json)
+    p.add_argument("--out", type=Path, required=True, help="weights directory to write")
+    p.add_argument("--seed", type=int, default=0, help="training seed (also picks the scene seeds)")
+    p.add_argument("--device", default="cpu", help="torch device of the training steps: cpu, cuda, cuda:N")
+    p.add_argument("--scenes", type=int, default=60, help="training scenes to generate")
+    p.add_argument("--eval-scenes", type=int, default=6, help="held-out scenes (threshold choice, card metrics)")
+    p.add_argument("--data", type=Path, default=None, help="scene folder (train/, eval/); default OUT/scenes")
+    p.add_argument("--steps", type=int, default=6000, help="optimiser steps")
+    p.add_argument("--batch", type=int, default=8, help="crops per step")
+    p.add_argument("--crop", type=int, default=192, help="crop side at the working resolution")
+    p.add_argument("--lr", type=float, default=3e-3, help="peak learning rate")
+    p.add_argument("--per-split", type=int, default=12, help="frames kept per split and scene")
+    p.add_argument("--width", type=int, default=640, help="render width of the generated scenes")
+    p.add_argument("--height", type=int, default=480, help="render height of the generated scenes")
+    p.add_argument("--workers", type=int, default=2, help="parallel scene generation processes")
+    p.add_argument("--threads", type=int, default=2, help="torch CPU threads")
+
+
+def _scene_dirs(root: Path) -> list[Path]:
+    return sorted(p for p in root.iterdir() if (p / "scene.json").is_file()) if root.is_dir() else []
+
+
+def _generate(root: Path, prefix: str, seeds: list[int], args: argparse.Namespace) -> list[Path]:
+    try:
+        from generators.generate import generate_scenes, training_specs
+    except ImportError as e:
+        raise ConfigError(f"the scene generator is not available ({e}); pass --data with train/ and eval/") from None
+    specs = training_specs(
+        prefix, seeds, args.width, args.height, with_floors=True, max_mapping_frames=30, n_query=10, n_displaced=3
+    )
+    root.mkdir(parents=True, exist_ok=True)
+    return generate_scenes(specs, root, resume=True, workers=args.workers, desc=f"{prefix} scenes")
+
+
+def run(args: argparse.Namespace) -> int:
+    # heavy imports here: the CLI imports every command module at start-up
+    import numpy as np
+    import torch
+
+    from openreloc_bench import config as cfgmod
+    from openreloc_bench.data import io, paths
+    from openreloc_bench.vision.learned_segment import NetConfig, save_weights
+    from openreloc_bench.vision.segmenter_training import (
+        SegTrainConfig,
+        evaluate_thresholds,
+        load_frames,
+        train_boundary_net,
+    )
+    from openreloc_bench.vision.training import training_device
+
+    for flag, value in (
+        ("--scenes", args.scenes),
+        ("--eval-scenes", args.eval_scenes),
+        ("--per-split", args.per_split),
+    ):
+        if value < 1:
+            raise ConfigError(f"{flag} must be >= 1, got {value}")
+    cfg = cfgmod.from_dict(
+        SegTrainConfig,
+        {"seed": args.seed, "steps": args.steps, "batch": args.batch, "crop": args.crop, "lr": args.lr,
+         "threads": args.threads, "device": args.device},
+        "train-segmenter",
+    )  # fmt: skip
+    device = training_device(args.device)  # refuse a missing GPU before generating anything
+    net_cfg = NetConfig()
+    data = args.data or args.out / "scenes"
+    with paths.directory_lock(args.out, "openreloc-bench train-segmenter"):
+        train_dirs, eval_dirs = _scene_dirs(data / "train"), _scene_dirs(data / "eval")
+        if not (train_dirs and eval_dirs):
+            from generators.spec import TRAINING_SEED_MIN
+
+            base = TRAINING_SEED_MIN + 1000 * args.seed
+            train_dirs = _generate(
+                data / "train", "train", [base + TRAIN_SEED_OFFSET + i for i in range(args.scenes)], args
+            )
+            eval_dirs = _generate(
+                data / "eval", "eval", [base + EVAL_SEED_OFFSET + i for i in range(args.eval_scenes)], args
+            )
+        seeds = {
+            name: [io.read_json(d / "scene.json").get("seed") for d in dirs]
+            for name, dirs in (("train", train_dirs), ("eval", eval_dirs))
+        }
+        if set(seeds["train"]) & set(seeds["eval"]):
+            raise ConfigError("training and evaluation scenes share seeds; evaluation must be on held-out scenes")
+        train = load_frames(train_dirs, net_cfg, args.per_split, np.random.default_rng(args.seed))
+        held = load_frames(eval_dirs, net_cfg, max(2, args.per_split // 3), np.random.default_rng(args.seed + 1))
+        print(f"{len(train)} training frames from {len(train_dirs)} scenes; {len(held)} held-out frames", flush=True)
+        t0 = time.time()
+        net, info = train_boundary_net(
+            train, net_cfg, cfg, args.out / "checkpoint.pt", log=lambda m: print(m, flush=True)
+        )
+        torch.set_num_threads(args.threads)
+        scores = evaluate_thresholds(net, held, THRESHOLDS)
+        best = max(THRESHOLDS, key=lambda t: scores[t]["mean_best_iou"] + scores[t]["ap50"])
+        card = {
+            "id": info["recipe"],
+            "threshold": best,
+            "held_out": {"threshold": best, **scores[best]},
+            "thresholds": {str(t): s for t, s in scores.items()},
+            "train": cfgmod.to_dict(cfg),
+            "data": {
+                "train_seeds": seeds["train"],
+                "eval_seeds": seeds["eval"],
+                "render_size": [args.width, args.height],
+                "frames_per_split": args.per_split,
+                "train_frames": len(train),
+                "eval_frames": len(held),
+            },
+            "history": info["history"],
+            "train_seconds": info["train_seconds"],
+            "wall_seconds": round(time.time() - t0, 1),
+            "environment": {
+                "torch": torch.__version__,
+                "python": platform.python_version(),
+                "device": torch.cuda.get_device_name(device) if device.type == "cuda" else "cpu",
+                "threads": args.threads,
+            },
+        }
+        save_weights(args.out, net, net_cfg, card)
+    h = card["held_out"]
+    print(
+        f"held-out (threshold {best}): mean best IoU {h['mean_best_iou']:.3f}, AP50 {h['ap50']:.3f}, "
+        f"over-seg {h['over_segmentation']:.3f}, under-seg {h['under_segmentation']:.3f} ({h['objects']} objects)"
+    )
+    print(f"wrote {args.out} (use segmenter_options: {{weights: {args.out}}})")
+    return 0

@@ -1,0 +1,386 @@
+"""Training and evaluation of the learned segmenter's boundary network on generated scenes.
+
+The target of a frame is its instance boundary map: pixels whose instance id differs from a
+4-neighbour's (both sides, so a boundary is two pixels wide at the working resolution). The loss is
+class-balanced binary cross-entropy plus a soft Dice term (boundaries are a few percent of the pixels).
+Augmentation covers what separates scenes and splits: flips, scale, colour gain, gamma, and darkening
+down to the lighting-decay splits' levels with 8-bit re-quantisation, then sensor-like noise.
+
+Training is resumable: a checkpoint (network, optimiser, step, random states) is written atomically
+every ``checkpoint_every`` steps and picked up when the same recipe is run again.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import io as _io
+import json
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+import torch
+import torch.nn.functional as F
+from tqdm import tqdm
+
+from openreloc_bench.data import io
+from openreloc_bench.data.scene import Scene
+from openreloc_bench.errors import ConfigError
+from openreloc_bench.vision.learned_segment import (
+    BoundaryNet,
+    NetConfig,
+    segment_scores,
+    segments_from_boundaries,
+    standardize,
+    work_size,
+)
+from openreloc_bench.vision.training import training_device
+
+FRAME_SPLITS = ("mapping", "query", "query_light1", "query_light2", "query_light3", "query_light4", "query_displaced")
+
+
+@dataclass
+class SegTrainConfig:
+    """Hyper-parameters of one training run (saved in the weights' card)."""
+
+    seed: int = 0
+    """Seeds numpy and torch (initialisation, batches, crops, augmentation)."""
+    steps: int = 6000
+    """Optimiser steps."""
+    batch: int = 8
+    """Crops per step."""
+    crop: int = 192
+    """Side of the square training crops, in working-resolution pixels (multiple of the net's stride)."""
+    lr: float = 3e-3
+    """Peak AdamW learning rate (linear warm-up, cosine decay to 2% of it)."""
+    weight_decay: float = 1e-4
+    """AdamW weight decay."""
+    warmup_steps: int = 200
+    """Steps of linear learning-rate warm-up."""
+    dice_weight: float = 1.0
+    """Weight of the soft Dice term next to the class-balanced cross-entropy."""
+    max_pos_weight: float = 10.0
+    """Cap of the cross-entropy's positive-class weight (negatives / positives of the batch)."""
+    dark_prob: float = 0.35
+    """Share of crops darkened to 12-60% brightness and re-quantised (the lighting-decay splits)."""
+    threads: int = 2
+    """torch CPU threads."""
+    device: str = "cpu"
+    """torch device of the steps ("cpu", "cuda", "cuda:1"); augmentation stays on the CPU."""
+    checkpoint_every: int = 250
+    """Steps between checkpoints (a killed run resumes from the last one)."""
+
+    def __post_init__(self) -> None:
+        for key in ("steps", "batch", "crop", "threads", "checkpoint_every"):
+            if getattr(self, key) < 1:
+                raise ValueError(f"'{key}' must be >= 1, got {getattr(self, key)}")
+        for key in ("lr", "dice_weight", "max_pos_weight"):
+            v = getattr(self, key)
+            if not (math.isfinite(v) and v > 0):
+                raise ValueError(f"'{key}' must be a positive number, got {v}")
+        if not 0.0 <= self.dark_prob <= 1.0:
+            raise ValueError(f"'dark_prob' must be in [0, 1], got {self.dark_prob}")
+
+
+# ------------------------------------------------------------------------------------------------ data
+
+
+def boundary_map(ids: np.ndarray) -> np.ndarray:
+    """uint8 (H, W): 1 where a 4-neighbour has another instance id (both sides of every edge)."""
+    b = np.zeros(ids.shape, bool)
+    dx = ids[:, 1:] != ids[:, :-1]
+    dy = ids[1:, :] != ids[:-1, :]
+    b[:, 1:] |= dx
+    b[:, :-1] |= dx
+    b[1:, :] |= dy
+    b[:-1, :] |= dy
+    return b.astype(np.uint8)
+
+
+@dataclass
+class FrameSet:
+    """Frames at the working resolution: RGB and instance ids, and the scene each came from."""
+
+    rgb: np.ndarray
+    """(N, h, w, 3) uint8."""
+    ids: np.ndarray
+    """(N, h, w) int32 instance ids."""
+    scene: list[str]
+
+    def __len__(self) -> int:
+        return len(self.rgb)
+
+
+def load_frames(
+    scene_dirs: Sequence[Path],
+    net_cfg: NetConfig,
+    per_split: int,
+    rng: np.random.Generator,
+    splits: Sequence[str] = FRAME_SPLITS,
+    progress: bool = True,
+) -> FrameSet:
+    """Up to ``per_split`` random frames of each split of each scene, resized to the working resolution
+    (RGB by area averaging, as the segmenter does at run time; ids by nearest neighbour)."""
+    rgbs, idss, names = [], [], []
+    for d in tqdm(list(scene_dirs), desc="frames", unit="scene", disable=not progress, leave=False):
+        scene = Scene(d)
+        for split in splits:
+            if split not in scene.splits():
+                continue
+            seq = scene.sequence(split)
+            pick = np.sort(rng.choice(len(seq), min(per_split, len(seq)), replace=False))
+            for i in pick:
+                f = seq[int(i)]
+                if f.instance is None:
+                    raise ConfigError(f"{d}/{split}: frames without instance masks cannot train the segmenter")
+                w, h = work_size(seq.width, seq.height, net_cfg.work_width, net_cfg.stride)
+                rgbs.append(cv2.resize(f.color, (w, h), interpolation=cv2.INTER_AREA))
+                idss.append(cv2.resize(f.instance, (w, h), interpolation=cv2.INTER_NEAREST))
+                names.append(scene.name)
+    if not rgbs:
+        raise ConfigError("no training frames found (scenes without the expected splits?)")
+    sizes = {r.shape for r in rgbs}
+    if len(sizes) > 1:
+        raise ConfigError(f"training scenes differ in aspect ratio ({sorted(sizes)}): use one frame shape")
+    return FrameSet(np.stack(rgbs), np.stack(idss).astype(np.int32), names)
+
+
+def augment(
+    rgb: np.ndarray, ids: np.ndarray, crop: int, dark_prob: float, rng: np.random.Generator
+) -> tuple[np.ndarray, np.ndarray]:
+    """One random training crop (RGB uint8, boundary uint8) of a frame."""
+    h, w = ids.shape
+    s = rng.uniform(0.75, 1.35)  # objects nearer or farther than in the frame
+    sh, sw = max(crop, round(h * s)), max(crop, round(w * s))
+    img = cv2.resize(rgb, (sw, sh), interpolation=cv2.INTER_AREA if s < 1 else cv2.INTER_LINEAR)
+    lab = cv2.resize(ids, (sw, sh), interpolation=cv2.INTER_NEAREST)
+    y, x = rng.integers(0, sh - crop + 1), rng.integers(0, sw - crop + 1)
+    img, lab = img[y : y + crop, x : x + crop], lab[y : y + crop, x : x + crop]
+    if rng.random() < 0.5:
+        img, lab = img[:, ::-1], lab[:, ::-1]
+    f = img.astype(np.float32) / 255.0
+    f = f ** rng.uniform(0.7, 1.4) * rng.uniform(0.85, 1.15, 3).astype(np.float32)
+    if rng.random() < dark_prob:
+        f = np.round(np.clip(f * rng.uniform(0.12, 0.6), 0, 1) * 255.0) / 255.0  # dark, and 8-bit again
+    f = f + rng.normal(0.0, rng.uniform(0.0, 0.02), f.shape).astype(np.float32)
+    out = np.clip(np.round(f * 255.0), 0, 255).astype(np.uint8)
+    return np.ascontiguousarray(out), boundary_map(np.ascontiguousarray(lab))
+
+
+def boundary_loss(logit: torch.Tensor, target: torch.Tensor, cfg: SegTrainConfig) -> torch.Tensor:
+    """Class-balanced BCE + ``dice_weight`` x soft Dice on the boundary class."""
+    pos = target.sum()
+    pos_weight = ((target.numel() - pos) / pos.clamp_min(1.0)).clamp(max=cfg.max_pos_weight)
+    bce = F.binary_cross_entropy_with_logits(logit, target, pos_weight=pos_weight)
+    p = torch.sigmoid(logit)
+    dice = 1.0 - (2.0 * (p * target).sum() + 1.0) / (p.sum() + target.sum() + 1.0)
+    return bce + cfg.dice_weight * dice
+
+
+# ------------------------------------------------------------------------------------------------ training
+
+
+def recipe_id(cfg: SegTrainConfig, net_cfg: NetConfig, scenes: Sequence[str]) -> str:
+    """Hash of everything that determines the weights (a checkpoint resumes only the same recipe)."""
+    recipe = {k: v for k, v in asdict(cfg).items() if k not in ("threads", "checkpoint_every")}
+    blob = json.dumps({"train": recipe, "net": asdict(net_cfg), "scenes": list(scenes)}, sort_keys=True)
+    return hashlib.sha256(blob.encode()).hexdigest()[:16]
+
+
+def train_boundary_net(
+    frames: FrameSet,
+    net_cfg: NetConfig,
+    cfg: SegTrainConfig,
+    checkpoint: Path | None = None,
+    log: Callable[[str], None] = print,
+) -> tuple[BoundaryNet, dict[str, Any]]:
+    """Train on ``frames``; resumes from ``checkpoint`` when it holds the same recipe."""
+    if cfg.crop % net_cfg.stride:
+        raise ConfigError(f"crop {cfg.crop} must be a multiple of the network's stride {net_cfg.stride}")
+    if cfg.crop > min(frames.ids.shape[1:]):
+        raise ConfigError(f"crop {cfg.crop} is larger than the frames ({frames.ids.shape[2]}x{frames.ids.shape[1]})")
+    device = training_device(cfg.device)
+    torch.set_num_threads(cfg.threads)
+    torch.manual_seed(cfg.seed)
+    rng = np.random.default_rng(cfg.seed)
+    net = BoundaryNet(net_cfg).to(device)
+    opt = torch.optim.AdamW(net.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
+    rid = recipe_id(cfg, net_cfg, sorted(set(frames.scene)))
+    step, history, seconds = 0, [], 0.0
+    if checkpoint is not None and checkpoint.is_file():
+        state = torch.load(checkpoint, map_location=device, weights_only=False)
+        if state.get("recipe") == rid:
+            net.load_state_dict(state["net"])
+            opt.load_state_dict(state["opt"])
+            step, history, seconds = state["step"], state["history"], state["seconds"]
+            rng.bit_generator.state = state["rng"]
+            torch.set_rng_state(state["torch_rng"])
+            log(f"resumed from step {step} of {cfg.steps}")
+        else:
+            log("checkpoint is from another recipe: starting over")
+
+    def lr_at(s: int) -> float:
+        if s < cfg.warmup_steps:
+            return cfg.lr * (s + 1) / cfg.warmup_steps
+        t = (s - cfg.warmup_steps) / max(1, cfg.steps - cfg.warmup_steps)
+        return cfg.lr * (0.02 + 0.98 * 0.5 * (1 + math.cos(math.pi * min(1.0, t))))
+
+    net.train()
+    t0, window = time.perf_counter(), []
+    with tqdm(total=cfg.steps, initial=step, desc="train segmenter", unit="step") as bar:
+        while step < cfg.steps:
+            idx = rng.integers(0, len(frames), cfg.batch)
+            pairs = [augment(frames.rgb[i], frames.ids[i], cfg.crop, cfg.dark_prob, rng) for i in idx]
+            x = standardize(np.stack([p[0] for p in pairs])).to(device)
+            y = torch.from_numpy(np.stack([p[1] for p in pairs])).float()[:, None].to(device)
+            for g in opt.param_groups:
+                g["lr"] = lr_at(step)
+            loss = boundary_loss(net(x), y, cfg)
+            opt.zero_grad(set_to_none=True)
+            loss.backward()
+            opt.step()
+            step += 1
+            window.append(loss.item())
+            bar.update(1)
+            if step % cfg.checkpoint_every == 0 or step == cfg.steps:
+                history.append({"step": step, "loss": round(float(np.mean(window)), 5)})
+                bar.set_postfix(loss=history[-1]["loss"])
+                window = []
+                if checkpoint is not None:
+                    _save_checkpoint(checkpoint, net, opt, step, history, seconds + time.perf_counter() - t0, rng, rid)
+    net.eval()
+    return net.cpu(), {"history": history, "train_seconds": round(seconds + time.perf_counter() - t0, 1), "recipe": rid}
+
+
+def _save_checkpoint(
+    path: Path, net: BoundaryNet, opt: Any, step: int, history: list, seconds: float, rng: Any, rid: str
+) -> None:
+    buf = _io.BytesIO()
+    torch.save(
+        {
+            "net": net.state_dict(),
+            "opt": opt.state_dict(),
+            "step": step,
+            "history": history,
+            "seconds": seconds,
+            "rng": rng.bit_generator.state,
+            "torch_rng": torch.get_rng_state(),
+            "recipe": rid,
+        },
+        buf,
+    )
+    io.atomic_write_bytes(path, buf.getvalue())
+
+
+# ------------------------------------------------------------------------------------------------ evaluation
+
+
+def match_segments(pred: np.ndarray, gt: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Overlaps of one frame: (intersection (n_gt, n_pred), gt areas, pred areas), over the ground-truth
+    ids > 0 and the predicted labels in increasing order (label 0 of ``pred``, if any, excluded)."""
+    g_ids, g_inv = np.unique(gt, return_inverse=True)
+    p_ids, p_inv = np.unique(pred, return_inverse=True)
+    g_inv, p_inv = g_inv.ravel(), p_inv.ravel()
+    inter = np.bincount(g_inv * len(p_ids) + p_inv, minlength=len(g_ids) * len(p_ids)).reshape(len(g_ids), -1)
+    gi, pi = g_ids > 0, p_ids > 0
+    return inter[np.ix_(gi, pi)], np.bincount(g_inv)[gi], np.bincount(p_inv)[pi]
+
+
+def frame_metrics(pred: np.ndarray, gt: np.ndarray, scores: np.ndarray | None, min_frac: float) -> dict[str, Any]:
+    """Per-frame statistics over the objects covering >= ``min_frac`` of the image: best IoU per object,
+    split (over-segmented) and swallowed (under-segmented) objects, and the AP50 inputs (per prediction:
+    score, true positive, ignored). ``scores`` align with ``pred``'s labels > 0 in increasing order."""
+    inter, g_area, p_area = match_segments(pred, gt)
+    big = g_area >= min_frac * gt.size
+    if inter.shape[1] == 0:
+        n = int(big.sum())
+        return {
+            "best_iou": [0.0] * n,
+            "split": [False] * n,
+            "swallowed": [False] * n,
+            "n_gt": n,
+            "scores": [],
+            "tp": [],
+            "ignore": [],
+        }
+    iou = inter / np.maximum(g_area[:, None] + p_area[None, :] - inter, 1)
+    share = inter / np.maximum(g_area[:, None], 1)  # of each object, per segment
+    main = share.argmax(1)
+    purity = inter[np.arange(len(g_area)), main] / np.maximum(p_area[main], 1)
+    split = (share >= 0.2).sum(1) >= 2  # spread over >= 2 segments holding >= 20% each
+    swallowed = (share.max(1) >= 0.5) & (purity < 0.5)  # its main segment is mostly something else
+    scores = p_area.astype(float) if scores is None else np.asarray(scores, float)
+    owner = iou.argmax(0)
+    on_objects = inter.sum(0)
+    tp, ignore, claimed = [], [], set()
+    for j in np.argsort(-scores, kind="stable"):
+        g = int(owner[j])
+        hit = bool(iou[g, j] >= 0.5 and big[g] and g not in claimed)
+        claimed |= {g} if hit else set()
+        tp.append(hit)
+        # a segment on a small object or mostly on unlabelled pixels is neither right nor wrong
+        ignore.append(bool(not hit and ((iou[g, j] >= 0.5 and not big[g]) or on_objects[j] < 0.5 * p_area[j])))
+    return {
+        "best_iou": iou.max(1)[big].tolist(),
+        "split": split[big].tolist(),
+        "swallowed": swallowed[big].tolist(),
+        "n_gt": int(big.sum()),
+        "scores": np.sort(scores)[::-1].tolist(),
+        "tp": tp,
+        "ignore": ignore,
+    }
+
+
+def average_precision(frames: list[dict[str, Any]]) -> float:
+    """COCO-style AP at IoU 0.5 (101-point interpolated) over every frame's predictions."""
+    n_gt = sum(f["n_gt"] for f in frames)
+    rows = [(s, t) for f in frames for s, t, ig in zip(f["scores"], f["tp"], f["ignore"]) if not ig]
+    if n_gt == 0:
+        return float("nan")
+    if not rows:
+        return 0.0
+    rows.sort(key=lambda r: -r[0])
+    tp = np.cumsum([t for _, t in rows])
+    precision = tp / np.arange(1, len(rows) + 1)
+    recall = tp / n_gt
+    precision = np.maximum.accumulate(precision[::-1])[::-1]
+    grid = np.linspace(0, 1, 101)
+    idx = np.searchsorted(recall, grid, side="left")
+    return float(np.mean([precision[i] if i < len(precision) else 0.0 for i in idx]))
+
+
+def summarize(frames: list[dict[str, Any]]) -> dict[str, float]:
+    """Mean best IoU, AP50, over- and under-segmentation rates over frames' statistics."""
+    best = [v for f in frames for v in f["best_iou"]]
+    split = [v for f in frames for v in f["split"]]
+    swallowed = [v for f in frames for v in f["swallowed"]]
+    return {
+        "mean_best_iou": float(np.mean(best)) if best else float("nan"),
+        "ap50": average_precision(frames),
+        "over_segmentation": float(np.mean(split)) if split else float("nan"),
+        "under_segmentation": float(np.mean(swallowed)) if swallowed else float("nan"),
+        "objects": len(best),
+    }
+
+
+def evaluate_thresholds(
+    net: BoundaryNet,
+    frames: FrameSet,
+    thresholds: Sequence[float],
+    min_frac: float = 0.01,
+    min_area_frac: float = 0.0005,
+) -> dict[float, dict[str, float]]:
+    """Held-out metrics at each boundary threshold (the network runs once per frame)."""
+    stats: dict[float, list[dict[str, Any]]] = {t: [] for t in thresholds}
+    with torch.inference_mode():
+        for i in range(len(frames)):
+            prob = torch.sigmoid(net(standardize(frames.rgb[i][None])))[0, 0].numpy()
+            for t in thresholds:
+                labels = segments_from_boundaries(prob, t, max(1, round(min_area_frac * prob.size)))
+                stats[t].append(frame_metrics(labels, frames.ids[i], segment_scores(labels, prob), min_frac))
+    return {t: summarize(s) for t, s in stats.items()}

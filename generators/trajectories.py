@@ -92,7 +92,7 @@ def occupancy_grid(layout: Layout, floor: int) -> Occupancy:
     return Occupancy(floor, origin, free, room_index, rooms)
 
 
-def _grid_graph(occ: Occupancy):
+def grid_graph(occ: Occupancy):
     """8-connected graph of free cells (sparse matrix) and the flat index of each free cell."""
     rows, cols = occ.free.shape
     idx = np.full(occ.free.shape, -1, dtype=int)
@@ -114,7 +114,7 @@ def _grid_graph(occ: Occupancy):
 class _PathFinder:
     def __init__(self, occ: Occupancy):
         self.occ = occ
-        self.graph, self.idx, self.cells = _grid_graph(occ)
+        self.graph, self.idx, self.cells = grid_graph(occ)
 
     def path(self, a: np.ndarray, b: np.ndarray) -> np.ndarray | None:
         """Shortest free-space path from a to b (world xy), as cell centres."""

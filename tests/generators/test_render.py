@@ -78,6 +78,15 @@ def test_exact_depth_on_known_geometry(box_room, pose: int) -> None:
     assert face_dist.max() < 1e-4
 
 
+def test_colour_only_rendering_matches_the_full_render(box_room) -> None:
+    rgb, depth, _ = box_room.render(POSES[1], K, W, H)
+    rgb2, depth2 = box_room.render_color(POSES[1], K, W, H, depth=True)
+    assert np.array_equal(rgb, rgb2) and np.array_equal(depth, depth2)
+    K2 = geometry.intrinsics_from_fov(W // 2, H // 2, 60.0)
+    rgb3, none = box_room.render_color(POSES[1], K2, W // 2, H // 2)
+    assert rgb3.shape == (H // 2, W // 2, 3) and none is None
+
+
 def test_opencv_convention(box_room) -> None:
     """The box centre projects where geometry.project says (x right, y down, z forward)."""
     T = POSES[0]

@@ -188,7 +188,11 @@ def _check_size(path: Path, img: np.ndarray, expect_hw: tuple[int, int] | None) 
 
 
 def read_text(path: Path | str) -> str:
-    """A text file a user gave, as str; DataError if it is missing, binary or not UTF-8."""
+    """A text file a user gave, as str; DataError if it is missing, binary or not UTF-8.
+
+    A leading UTF-8 byte-order mark (editors on Windows write one) is dropped, so it never becomes
+    part of the first name or key; UTF-16 text is named as such rather than called binary.
+    """
     path = Path(path)
     if not path.is_file():
         raise DataError(path, "file not found")
@@ -196,7 +200,7 @@ def read_text(path: Path | str) -> str:
     if b"\x00" in data:
         raise DataError(path, "not a text file (binary content)")
     try:
-        return data.decode("utf-8")
+        return data.decode("utf-8-sig")
     except UnicodeDecodeError as e:
         raise DataError(path, f"not UTF-8 text (byte {e.start}: {e.reason})") from None
 

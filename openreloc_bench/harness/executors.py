@@ -41,7 +41,7 @@ def exit_with(parent_pid: int, poll_s: float = 1.0) -> None:
 
     Killing an eval (SIGTERM, SIGKILL) ends only its main process; the workers are children of the
     fork server, not of it, so without this they finish their jobs and write results for a run that
-    was stopped (seen: orphans still running 50 minutes later, next to a new run on the same folder).
+    was stopped (orphans were seen still running long after, next to a new run on the same folder).
     """
 
     def watch() -> None:

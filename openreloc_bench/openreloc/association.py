@@ -36,9 +36,8 @@ class AssociationConfig:
     """Candidates per modality (paper: 3)."""
     uniqueness_ratio: float = 0.3
     """Keep query objects whose uniqueness is at least this share of the query's median uniqueness.
-    0.3 rather than 0.5: at 0.5 the filter dropped objects that would have matched; on the validation
-    suite (seeds 0-2) 0.3 lifts R@50/R@25 from 81.6/72.9 to 82.7/74.0; the benchmark suites show no
-    gain (740 queries: one fewer within 50 cm, five fewer within 25 cm; leaderboard/README.md)."""
+    0.3 rather than 0.5: at 0.5 the filter dropped objects that would have matched (chosen on the
+    validation suite; docs/experiments.md)."""
     min_uniqueness: float = 1e-5
     """Absolute floor on uniqueness (variance of cosines): below it an object is never unique."""
     hops: int = 1

@@ -33,13 +33,11 @@ class ConsistencyConfig:
     """Beyond the paper: only the refined poses that best explain all query masks compete on ICP loss
     (False = the lowest 2D ICP loss of all, as the paper has it for its single hypothesis)."""
     stride: int = 8
-    """Pixels per cell of the label grid (8: an 80 x 60 grid at 640 x 480). 4 with ``splat``: 76.7 / 66.4
-    against 76.5 / 66.4 (validation, seeds 0-2), not worth four times the cells."""
+    """Pixels per cell of the label grid (8: an 80 x 60 grid at 640 x 480). A finer grid costs four times
+    the cells per halving and, with ``splat``, ranks the hypotheses no better."""
     points_per_landmark: int = 400
-    """At most this many points of each landmark are drawn (a seeded subsample). Validation suite, seeds 0-2:
-    drawn as single cells, 1,600 points gave +0.85 / +0.85 R@50 / R@25 (fewer holes); with ``splat``,
-    76.7 / 66.6 against 76.5 / 66.4, so the cheaper 400 stay. (Landmarks hold at most 1,500 points:
-    1,600 draws them all.)"""
+    """At most this many points of each landmark are drawn (a seeded subsample). More points leave fewer
+    holes when drawn as single cells; with ``splat`` the holes are filled and more points add only cost."""
     candidates: int = 5
     """A landmark among an object's visual top-k counts fully; any other is weighted by ``off_candidate_weight``."""
     off_candidate_weight: float = 0.2
@@ -49,9 +47,7 @@ class ConsistencyConfig:
     splat: float = 1.0
     """Each drawn point covers a square of half-width ``splat`` x its landmark's point spacing (the median
     distance to the nearest other drawn point of the landmark), projected at its depth. 0 = one cell per
-    point. At the true poses of 20 multi-room queries the drawn cells cover 85% of the grid instead of 32%.
-    Validation suite, seeds 0-2, R@50 / R@25: 75.3 / 66.0 -> 76.5 / 66.4 (paired p = 0.004 at 50 cm),
-    1.4 ms per drawing instead of 1.0."""
+    point, which leaves most of the grid undrawn even at the true pose (see the module docstring)."""
     max_splat_cells: int = 12
     """A point's square spans at most about this many cells per side (a point at the lens would cover the
     image)."""

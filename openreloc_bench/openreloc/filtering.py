@@ -8,7 +8,7 @@ or any landmark seen together with it). In one room this equals the global share
 scene a room's wall is compared with the frames of that room, not with every frame of the house,
 where even a wall would look rare. ``scope: global`` gives the paper's plain share.
 
-Frequency alone does not separate structure from furniture on the generated scenes (measured, see
+Frequency alone does not separate structure from furniture on the generated scenes (see
 :attr:`FilterConfig.max_frequency`), so a second, geometric cue is on by default: a landmark whose
 points form a large thin slab (principal extents: longest >= ``plane_min_span``, thinnest <=
 ``plane_max_thickness``) is a wall, floor or ceiling piece. This is beyond the paper (which only names
@@ -34,12 +34,11 @@ class FilterConfig:
     """Mark frequent landmarks invalid (the 'no invalid-object filtering' ablation turns this off)."""
     max_frequency: float = 1.0
     """Landmarks in more than this share of (neighbourhood) reference frames are invalid; 1.0 turns the
-    frequency cue off (the paper's rule is frequency alone: use 0.75 with ``shape_filter: false``).
-    Measured (benchmarks/bench_mapping.py, oracle masks): smoke room: floor 1.0, armchair 1.0, fan 0.9,
-    walls 0.3-0.7, so 0.75 removes the floor but also the armchair and the fan; 4-room scene: floors
-    0.35-0.48, walls 0.10-0.33, furniture up to 0.38, so 0.75 removes nothing. No threshold separates
-    structure from furniture on the generated scenes; the shape cue does (4-room scene: removes
-    exactly the floor, wall and ceiling pieces; smoke room: floor and walls)."""
+    frequency cue off. The paper's rule is frequency alone, "objects that appear in most reference
+    frames" (``openreloc-paper``: 0.5 with ``scope: global`` and ``shape_filter: false``). On the
+    generated scenes no threshold separates structure from furniture (``benchmarks/bench_mapping.py``
+    prints the frequencies): a large piece of furniture in a small room is seen as often as its floor,
+    and in a house every landmark is rare; the shape cue finds the floor, wall and ceiling pieces."""
     scope: Literal["local", "global"] = "local"
     """'local': share within the landmark's co-visibility neighbourhood; 'global': share of all."""
     shape_filter: bool = True

@@ -71,7 +71,7 @@ class RefineConfig:
     returned; among those aligning the same match set) has not improved by ``plateau_threshold``
     (relative) for this many steps. The learning-rate
     rule above watches the *summed* loss, which far-off hypotheses keep lowering long after the best one
-    has settled: measured on 60 gen2 multi-room queries, 200 -> 117 steps with identical recall. 0 = off."""
+    has settled; stopping then saves steps without changing the returned pose. 0 = off."""
     stall_min_iterations: int = 40
     """The stall rule applies only from this step on (after outlier masking has settled)."""
     max_points: int = 300
@@ -87,7 +87,7 @@ class RefineConfig:
     backward_pixels: Literal["boundary", "all"] = "boundary"
     """Mask pixels of the backward path. "all" is the paper's literal form, but with subsampled points
     every interior pixel keeps a residual of about the point spacing, which rewards spreading the
-    points (moving towards the object): measured ~10-20 cm bias on synthetic boxes. "boundary" uses
+    points (moving towards the object), a bias of a decimetre or more. "boundary" uses
     the mask's contour (minus the image border, where the mask is truncated, not the object): the
     extremal points are pulled onto the contour while the forward path keeps all points inside."""
     min_depth: float = 0.05
@@ -95,21 +95,20 @@ class RefineConfig:
     max_side: int = 320
     """Beyond the paper (speed): masks are area-resampled so their longer side is at most this many
     pixels (the intrinsics scaled with them); ``huber_delta`` and reported losses stay in full-resolution
-    pixels. 0 = full resolution (paper-literal). At 640x480 a step costs ~4x less at 320."""
+    pixels. 0 = full resolution (paper-literal). At 640x480, 320 leaves a quarter of the pixels to search."""
     occlusion_aware: bool = False
     """Beyond the paper (off by default): the forward path ignores projected points landing on pixels of
     *another* query segment (that segment hides them; pulling them onto the own mask drags the pose).
-    Needs the ``occluders`` image. Measured: on exact boxes with a box standing on a table it fixes the
-    drag (65 cm start: 19 -> 8 cm), but on a generated 3-room scene (oracle association, 20 queries) it
-    lowers recall@50 from 65% to 55%: a wrong pose whose points fall on other segments pays nothing."""
+    Needs the ``occluders`` image. It fixes the drag of a box standing on a table, but off by default
+    because it lowered recall on generated scenes: a wrong pose whose points fall on other segments pays
+    nothing."""
     huber_delta_start: float = 0.0
     """Beyond the paper (coarse-to-fine): when larger than ``huber_delta``, the Huber threshold starts here
     and decays geometrically to ``huber_delta`` over ``anneal_steps`` (a wider quadratic basin first).
     0 = constant ``huber_delta`` (paper)."""
     correspondence_every: int = 3
-    """Beyond the paper (speed): the backward path's nearest projected points (a brute-force search: half
-    of a step's time with ``torch.cdist``, ~15% of the refinement with :func:`nearest_points`) are
-    recomputed every this many steps and held fixed in between, as classic ICP alternates correspondence
+    """Beyond the paper (speed): the backward path's nearest projected points (a brute-force search, the
+    costliest part of a step) are recomputed every this many steps and held fixed in between, as classic ICP alternates correspondence
     and update steps. 1 = every step."""
     anneal_steps: int = 30
     """Steps of the Huber-threshold decay (used only with ``huber_delta_start``)."""
@@ -117,19 +116,13 @@ class RefineConfig:
     """Beyond the paper (basin hopping): the chosen refined pose is refined again from four starts orbiting
     its matched landmarks' centre by +-this many degrees (:func:`orbit_starts`), and the lowest loss
     wins. Nearest-pixel correspondences make the loss landscape a chain of shallow basins: a sideways
-    shift plus a turn that keeps the objects in view barely changes it. Of the 25 validation queries
-    (seed 0) that ended 0.5-1 m off, in 11 the chosen matches refined from the *truth* converged
-    within 0.2 m of it, at a lower loss than the returned pose's. Validation suite (430 queries x seeds
-    0-2), R@50 / R@25: off 80.9 / 70.5; 6 degrees 82.2 / 72.9 (paired: 4 / 22 (query, seed) pairs only
-    before / only after at 50 cm, p = 0.001; 35 / 67 at 25 cm, p = 0.002), median query two at a time
-    0.77 -> 0.99 s; with ``restart_iterations`` 60: 82.1 / 72.2 (3 / 19, p = 0.001; 30 / 52, p = 0.02),
-    0.90 s. Those moved 14 multi-room queries from under 10 cm to 25-50 cm (the loss compared did not
-    count the same objects); with ``restart_margin`` 0.1: 81.6 / 72.6 (0 / 9, p = 0.004; 3 / 30,
-    p < 0.001), 0.90 s. 0 = off."""
+    shift plus a turn that keeps the objects in view barely changes it. Many queries that end 0.5-1 m
+    off have right matches that, refined from the *truth*, converge near it at a lower loss than the
+    returned pose's: the refinement stopped in a neighbouring basin. 0 = off."""
     restart_margin: float = 0.1
     """A restart replaces the pose only when its loss, over the objects that count in the pose's own (not
     its outliers), is at least this share lower: the valley is flat enough that a pose 20 cm off can
-    score 2% lower, and a restart that pushed one more object past ``outlier_factor`` would otherwise
+    score slightly lower, and a restart that pushed one more object past ``outlier_factor`` would otherwise
     win by leaving it out of its mean."""
     restart_iterations: int = 60
     """Step cap of each restart's refinement: they start a few degrees from a settled pose (uncapped they
@@ -197,8 +190,7 @@ def nearest_points(pix: torch.Tensor, pts: torch.Tensor) -> torch.Tensor:
     The argmin of ``|p|^2 - 2 x.p``: the squared distance without ``|x|^2``, which is constant along the
     searched axis. Batched matmuls and no square root, where ``torch.cdist`` also forms both norms and
     the root; in slices of about a megabyte, so that each score block is searched while it is in cache.
-    On the refinement's (40, 300, 300) blocks: 9 ms with cdist, 6 ms in one piece, 3 ms sliced. numpy's
-    argmin is ~1.5x faster than torch's on them."""
+    The argmin is numpy's, faster than torch's on such blocks."""
     sq = (pts * pts).sum(-1).unsqueeze(1)
     step = max(1, _SLICE_FLOATS // max(1, pix.shape[1] * pts.shape[1]))
     out = np.empty(pix.shape[:2], np.int64)
@@ -456,7 +448,7 @@ class _Problem:
         """d/d(q, t) of sum_(b, o) coef[b, o] * loss[b, o], by the chain rule through :meth:`evaluate`.
 
         Written out rather than left to autograd: a step is ~40 small tensor ops on a few thousand
-        points, where autograd's graph bookkeeping cost as much as the arithmetic (20% of a query).
+        points, where autograd's graph bookkeeping costs as much as the arithmetic.
         ``tests/openreloc/test_refine.py`` checks it against autograd.
         """
         R, pc, front, delta = terms.R, terms.pc, terms.front, terms.delta
@@ -505,7 +497,7 @@ def _weights(
         return real.float()
     losses = obj_losses.detach()
     # the median (of the real objects) as torch.quantile(0.5) interpolates it, without quantile's
-    # overhead (0.3 ms per call); padding sorts last
+    # per-call overhead; padding sorts last
     ordered = losses.nan_to_num(_BIG).masked_fill(~real, float("inf")).sort(dim=-1).values
     n = real.sum(-1, keepdim=True)
     median = 0.5 * (ordered.gather(-1, (n - 1) // 2) + ordered.gather(-1, n // 2))
@@ -546,8 +538,8 @@ def refine_poses(
     (matched or not) for the occlusion-aware forward path.
 
     ``target_sets[b]``: the indices of the targets hypothesis ``b`` aligns (default: all), so that
-    hypotheses with different matches share one batch. A step costs about 1.4 ms plus 0.4 ms per
-    hypothesis (16 objects, this 2-core machine), so one batch is cheaper than a batch per match set.
+    hypotheses with different matches share one batch. A step has a fixed cost larger than each
+    hypothesis adds, so one batch is cheaper than a batch per match set.
     Object losses are keyed by landmark id, so a set may hold each landmark once.
 
     Never raises on numerical trouble: a hypothesis whose loss or pose turns non-finite returns its
@@ -562,7 +554,7 @@ def refine_poses(
     if target_sets is not None:
         _check_target_sets(target_sets, targets, len(T_inits))
     threads = torch.get_num_threads()
-    torch.set_num_threads(1)  # a step is a few small ops: extra threads only add sync overhead (5-30x measured)
+    torch.set_num_threads(1)  # a step is a few small ops: extra threads only add synchronisation overhead
     try:
         return _optimise(T_inits, K, targets, cfg, seed, occluders, target_sets)
     finally:

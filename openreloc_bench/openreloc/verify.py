@@ -1,9 +1,8 @@
 """Geometric verification of the association (beyond the paper; ``VerifyConfig.enabled=False`` is literal).
 
 The paper resolves ambiguous matches by appearance, language and the scene graph only. With an
-encoder weaker than CLIP ViT-L/14 the true landmark is often the visual top-3 or top-5 but not the
-top-1 (measured on the multi-room suite with the offline encoder: recall@1 0.46, @5 0.77), and a
-single wrong match is enough to drag the 2D ICP away. Objects have positions and extents, though:
+encoder weaker than CLIP ViT-L/14 the true landmark is often among the visual top-5 but not the
+top-1, and a single wrong match is enough to drag the 2D ICP away. Objects have positions and extents, though:
 the true matches are the ones consistent with *one* camera pose. In the spirit of GOReloc's
 object-level RANSAC, this stage samples three query objects, one candidate landmark each (the
 association's choice most often; the further candidates favour the landmarks of the reference
@@ -20,15 +19,12 @@ keeps the next distinct consensus sets too; those whose pose renders closest to 
 (``refined_modes``) become hypotheses refined against their own matches.
 
 Why the box fit: P3P on centroids is biased, because a mask's centroid is not where its landmark's
-centre projects (the image border cuts the object, others occlude it, its back is unseen). On the
-validation suite (430 queries, seed 0, 139 failed), three right matches were drawn for 88 failed
-queries, yet in 46 of them no sampled pose came within 50 cm of the truth; in 76 failures the true
-pose scored higher than the winning one. Re-fitting the 16 best poses to boxes, and drawing objects
-cut by the border less often, raised R@50 / R@25 from 67.7 / 58.1 to 74.7 / 64.9. The local
-optimisation only starts from poses that already explain three masks, though; of the 84 queries still
-failed (seed 0, at b91e93e), 52 had three right candidates, and in 26 of them the best sampled pose
-within 1 m of the truth ranked 100th or lower, or none came that close: a right triple's centroid
-pose explains one or two masks. Fitting the likeliest triples' poses to their own boxes before
+centre projects (the image border cuts the object, others occlude it, its back is unseen). So a
+query for which three right matches are drawn may still get no sampled pose near the truth, and the
+true pose may score higher than the winning one. Re-fitting the best poses to the mask boxes, and
+drawing objects cut by the border less often, recovers many of those queries. The local optimisation
+only starts from poses that already explain three masks, though, and a right triple's centroid pose
+often explains only one or two: fitting the likeliest triples' poses to their own boxes before
 scoring (``fitted_triples``) gives those starts.
 
 Hand-written because OpenCV's ``solvePnPRansac`` assumes one correspondence per 2D point; here each
@@ -61,22 +57,19 @@ class VerifyConfig:
     enabled: bool = True
     """Beyond the paper: verify the association geometrically (False = the paper's association only)."""
     candidates: int = 8
-    """Candidate landmarks per query object: the association's choice, then its visual ranking (8 with
-    800 samples vs 5 with 400: +2.2 points R@50, +4.4 R@25 on 90 gen2 multi-room queries, +0.2 s)."""
+    """Candidate landmarks per query object: the association's choice, then its visual ranking (the true
+    landmark is often a few ranks down; more candidates need more samples to be drawn right)."""
     samples: int = 3200
     """Minimal samples (three objects, one candidate each) drawn; each gives up to four P3P poses. A
     failed query often has four or more objects whose true landmark is a candidate, but ranked below
-    first, so few random triples are all right. Validation suite (430 queries x seeds 0-2), R@50 / R@25:
-    800 samples 64.8 / 54.8, 1,600 (one seed) 64.4 / 56.0, 3,200 66.7 / 57.7 (paired over 1,290
-    (query, seed) pairs, p = 0.02 / < 0.001). Verification: 0.04 -> 0.12 s median on multi-room."""
+    first, so few random triples are all right: more samples find them, at a cost linear in the count."""
     min_iou: float = 0.3
     """An object is explained by a candidate when the image box of the landmark at the pose overlaps
     the mask's box by at least this IoU (occlusion shrinks masks, so it is lenient)."""
     min_inliers: int = 3
     """Fewer explained objects than this: verification gives up and the association stands (3: queries
     with four or five objects often have only three right candidates; the render-and-compare choice
-    after refinement rejects a wrong three-object pose. Measured on 90 gen2 multi-room queries: +3.3
-    points R@50 over 4)."""
+    after refinement rejects a wrong three-object pose)."""
     refits: int = 2
     """Local optimisation rounds: re-fit the pose to the inliers and re-collect them."""
     box_fit: bool = True
@@ -86,44 +79,27 @@ class VerifyConfig:
     back of the object), so a P3P pose from three right matches is often a metre off."""
     lo_poses: int = 32
     """Best-scoring sampled poses (at least ``mode_separation`` apart) given local optimisation; the
-    modes are chosen among them by their score after it. 32 rather than 16: R@50 / R@25 +1.1 / +0.8 on
-    the validation suite over seeds 0-2 (paired p = 0.02 at 50 cm), median query 0.55 -> 0.64 s two at
-    a time; the suites barely moved (single-room R@50 +1.2, the others equal). 64 poses: no more at
-    50 cm (validation, seed 0); with 16 modes screened (``refined_modes``), 78.8 / 67.9 against 78.4 /
-    67.5 over seeds 0-2 (paired 7 / 13 at 50 cm, p = 0.26): under the adoption rule. Verification
-    takes 0.20 s median on multi-room with 32 poses, 0.18 s with 16 (300 queries, alone, in different
-    hours)."""
+    modes are chosen among them by their score after it. Each costs a local optimisation; the right
+    pose is sometimes not among the first few best-scoring raw poses."""
     rank_weight: float = 0.8
     """An object's overlap with its k-th candidate counts ``rank_weight ** k`` in a pose's score and in the
     choice of its inlier (1 = every candidate alike). With eight candidates per object, almost any pose
     finds *some* look-alike overlapping most masks, and a wrong consensus of deep candidates outscored
-    the right one built on the association's choices. Validation suite (430 queries x seeds 0-2), R@50 /
-    R@25: 1.0 78.4 / 67.5, 0.8 79.3 / 69.1 (paired: 21 / 33 (query, seed) pairs only before / only after
-    at 50 cm, p = 0.13; 23 / 44 at 25 cm, p = 0.01), 0.65 78.3 / 69.6, 0.9 79.5 / 69.1 (against 0.8:
-    11 / 14 pairs at 50 cm); median query 0.78 -> 0.68 s two at a time (fewer poses reach the local
-    optimisation's score bar). The suites moved both ways (multi-room -1.0, single-room +3.4 at 50 cm)."""
+    the right one built on the association's choices. Fewer poses then reach the local optimisation's
+    score bar, which also saves time."""
     fitted_triples: int = 64
     """The first distinct triples drawn (the likeliest: mostly the association's choices) whose P3P poses
     are also fitted to the triple's three mask boxes (:func:`fit_boxes`) and scored besides: P3P on
     mask centroids is biased, and a right triple's raw pose often explains too few masks to be among
-    the ``lo_poses`` starts of the local optimisation. Validation suite (430 queries x seeds 0-2), R@50 /
-    R@25: 0 79.3 / 69.1, 64 80.9 / 70.5 (paired: 14 / 34 (query, seed) pairs only before / only after
-    at 50 cm, p = 0.006; 18 / 35 at 25 cm, p = 0.03), 32 80.5 / 70.3 (14 / 9 pairs against 64 at 50 cm),
-    160 80.9 / 70.5 (15 / 15); median query two at a time 0.68 -> 0.77 s (64), 0.96 s (160). Each fit
-    takes ~0.4 ms; on 300 multi-room queries alone, verification 0.20 -> 0.35 s median."""
+    the ``lo_poses`` starts of the local optimisation. Each fit is a small Gauss-Newton solve, so only
+    the likeliest triples get one."""
     place_frames: int = 3
     """A place prior on the candidates: after the association's choice (``place_keeps_choice``), rank each
     object's candidates by appearance plus ``place_bonus`` for the landmarks that the ``place_frames``
     reference frames looking most like the query see (:func:`~.retrieval.place_landmarks`); 0 = the
     association's candidates, then the visual cosine. A look-alike in another room is the usual wrong
-    candidate. Validation suite (430 queries, seed 0; objects with a valid true landmark that the
-    association kept): the true landmark is the place ranking's first for 58.3% of them (visual: 50.8%,
-    the association's choice: 53.7%); the 8 candidates, the association's choice first, hold it for 84.5%
-    (79.3% with 0), and 52 rather than 41 of the 70 missed queries have three objects with it there
-    (the ranking alone: 84.6%, 53). End to end (seeds 0-2, R@50 / R@25): 82.7 / 74.0 off,
-    84.5 / 75.0 with 3 frames and ``place_keeps_choice`` (paired: 26 / 49 (query, seed) pairs only
-    before / only after at 50 cm, p = 0.011; 43 / 56 at 25 cm, p = 0.23), 83.8 / 75.5 without it
-    (38 / 52, p = 0.17; 55 / 74, p = 0.11)."""
+    candidate, and the place ranking puts the true landmark first more often than the visual cosine or
+    the association's choice do, so more missed queries get three right candidates to draw."""
     place_bonus: float = 0.1
     """Added to the appearance score of a candidate that one of the ``place_frames`` frames sees (cosines
     of right and wrong candidates differ by a few hundredths; 0.2 ranked the true landmark lower)."""
@@ -134,18 +110,13 @@ class VerifyConfig:
     another room's look-alikes beat the association's own 8-inlier one)."""
     text_weight: float = 0.3
     """Weight of the describer's phrase (text cosine) beside the visual cosine in the place prior's
-    candidate ranking and frame scores (validation, seed 0: the true landmark among 8 candidates for
-    83.4% without it, 84.6% with 0.3; 0.6-1.0 no better)."""
+    candidate ranking and frame scores (the phrase separates look-alikes of another colour or material)."""
     covisible_weight: float = 0.1
     """Guided sampling: a triple's second and third candidates are drawn with their chance times this factor
-    unless some reference frame sees them together with the triple's earlier ones (1 = unguided). The
-    map's frames see 94.6% of the pairs of a query's true landmarks together, 61.7% of the pairs of wrong
-    candidates (validation suite, seed 0); on the missed queries, the chance that a drawn triple is all
-    right rises 1.8x (median; 0.02: 1.95x, 0.3: 1.49x, which chose 0.1 offline). Validation suite (430
-    queries x seeds 0-2), R@50 / R@25: 1.0 84.5 / 75.0, 0.1 85.7 / 76.1 (paired: 10 / 25 (query, seed)
-    pairs only before / only after at 50 cm, p = 0.017; 18 / 32 at 25 cm, p = 0.07). A guided draw repeats
-    triples more often, and each is solved once: 2,740 -> 2,560 P3P poses scored per query (mean of 12
-    validation queries)."""
+    unless some reference frame sees them together with the triple's earlier ones (1 = unguided). A
+    query's objects are in view together, so some reference frame almost always sees its true landmarks
+    together, and far less often a look-alike from another room with them: the guided draw makes an
+    all-right triple likelier. It also repeats triples more often, and each distinct one is solved once."""
     truncated_weight: float = 0.25
     """Relative chance of drawing an object cut by the image border into a sample: its mask centroid is
     far from where its landmark's centre projects, so P3P on it is biased."""
@@ -157,19 +128,14 @@ class VerifyConfig:
     from every kept one's. With ``hypothesis``, the best and the ``refined_modes`` - 1 further ones that
     render-and-compare best are refined against their own matches (in the coarse hypotheses' batch:
     :func:`~.refine.refine_poses`' ``target_sets``) and compete in the render-and-compare choice. It adds
-    coverage where the best consensus is a wrong set of look-alikes: on 71 failed multi-room queries,
-    the best-scoring sampled pose was within 1 m of the truth in 10%, one of the best two modes in 25%,
-    one of the best three in 31%. 1 = the best consensus only. Validation suite (430 queries x seeds
-    0-2), R@50 / R@25 and median query two at a time: every mode refined, 3 modes 76.5 / 66.4 (0.65 s),
-    5 modes 77.4 / 67.1 (0.94 s); 3 refined of 8 modes 77.9 / 67.1 (0.69 s), of 16 modes 78.4 / 67.5
-    (0.78 s; paired against 3 modes: 2 / 26 (query, seed) pairs at 50 cm, p < 0.001; 4 / 18 at 25 cm,
-    p = 0.004). The local optimisation keeps at most ``lo_poses`` poses, so modes beyond it add nothing."""
+    coverage where the best consensus is a wrong set of look-alikes: on failed queries the truth is more
+    often near one of the best few modes than near the best one. 1 = the best consensus only. The local
+    optimisation keeps at most ``lo_poses`` poses, so modes beyond it add nothing."""
     refined_modes: int = 3
     """Modes refined: the best one always, then the further modes whose *unrefined* pose explains the query
     masks best by render-and-compare (``consistency``; with it off, the RANSAC's next best). Drawing a
-    pose costs ~1.5 ms, refining it about 0.1 s, so many modes can be screened for the price of a few.
-    A mode's local optimisation already fits its boxes, so its drawing is close to its refined one's.
-    Validation suite, seeds 0-2, with 16 modes: 3 refined 78.4 / 67.5, 4 refined 78.2 / 67.4."""
+    pose is far cheaper than refining it, so many modes can be screened for the price of a few. A mode's
+    local optimisation already fits its boxes, so its drawing is close to its refined one's."""
     mode_separation: float = 1.0
     """Metres between the camera centres of two kept modes (a closer pose refines into the same one)."""
     hypothesis: bool = True
@@ -358,7 +324,7 @@ class _CandidateTable:
         for s in range(0, len(R), chunk):
             # (h, 3, E, M) camera coordinates by one matrix product, the extreme points' axis before the
             # candidates': the min / max over it combine contiguous rows (over a last axis of 14 they took
-            # half the time); ~2 MB chunks. On 8 queries: 111 -> 46 ms per call, the same IoUs to the bit.
+            # half the time); ~2 MB chunks, which stay in cache.
             n = min(chunk, len(R) - s)
             Xc = (
                 (R[s : s + chunk].reshape(-1, 3) @ self.E_by_extreme).reshape(n, 3, -1) + t[s : s + chunk, :, None]
@@ -415,8 +381,8 @@ def fit_boxes(
     edge offsets, by damped Gauss-Newton on a left perturbation of the pose. An edge is the projection
     of one extreme point (the arg-min or arg-max), so its Jacobian is the usual point-projection one.
     A box side on the image border only bounds (the mask is cut there; the object may go on). None if
-    it diverges. Hand-written: ``scipy.optimize.least_squares`` with finite differences took 5.2 ms
-    per fit of five boxes against 0.6 ms here, and the verification fits tens of poses per query."""
+    it diverges. Hand-written: ``scipy.optimize.least_squares`` with finite differences is several times
+    slower per fit, and the verification fits tens of poses per query."""
     w, h = size
     f, c = K[[0, 1], [0, 1]], K[:2, 2]
     bound = np.concatenate([boxes[:, :2] <= 0, boxes[:, 2:] >= (w, h)], axis=1)  # (n, 4) one-sided sides

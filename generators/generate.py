@@ -25,9 +25,9 @@ from generators.spec import GENERATOR_VERSION, SceneSpec, SuiteSpec, spec_hash
 from generators.trajectories import mapping_trajectory, sample_queries
 from generators.variants import LIGHT_SPLITS, Lighting, light_variants, sample_displacements
 from openreloc_bench import config, geometry
-from openreloc_bench.data import io
+from openreloc_bench.data import io, paths
 from openreloc_bench.data.scene import SceneWriter
-from openreloc_bench.errors import ConfigError
+from openreloc_bench.errors import ConfigError, DataError
 
 log = logging.getLogger(__name__)
 
@@ -112,11 +112,10 @@ def generate_scene(spec: SceneSpec, out_dir: Path | str, resume: bool = False, p
     frames are kept (the spec hash must match).
     """
     root = Path(out_dir) / spec.name
-    info_path = root / "scene.json"
     if root.exists():
-        if not info_path.exists() and any(root.iterdir()):
+        if not (root / "scene.json").exists() and any(root.iterdir()):
             raise ConfigError(f"{root}: exists and is not a generated scene; refusing to overwrite")
-        if resume and info_path.exists() and io.read_json(info_path).get("spec_hash") != spec_hash(spec):
+        if resume and generated_spec_hash(root) not in (None, spec_hash(spec)):
             raise ConfigError(
                 f"{root}: was generated from a different spec; cannot resume (delete it or drop --resume)"
             )
@@ -129,8 +128,11 @@ def generate_scene(spec: SceneSpec, out_dir: Path | str, resume: bool = False, p
     writer = SceneWriter(root)
     renderer = create_renderer(layout, spec.backend, spec.width, spec.height)
     try:
-        mapping = mapping_trajectory(layout, spec)
-        queries, qinfo = sample_queries(layout, spec, mapping, renderer)
+        try:
+            mapping = mapping_trajectory(layout, spec)
+            queries, qinfo = sample_queries(layout, spec, mapping, renderer)
+        except RuntimeError as e:  # the spec asks for more than its rooms allow: the user's to change
+            raise ConfigError(f"scene '{spec.name}': {e}") from None
         displacements = sample_displacements(layout, spec, queries[:, :3, 3])
         lights = light_variants(spec, len(layout.lights))
         splits: dict[str, tuple[np.ndarray, Lighting]] = {
@@ -164,6 +166,17 @@ def generate_scene(spec: SceneSpec, out_dir: Path | str, resume: bool = False, p
     return root
 
 
+def generated_spec_hash(root: Path) -> str | None:
+    """The spec hash ``root/scene.json`` records, or None when there is no scene.json."""
+    info_path = Path(root) / "scene.json"
+    if not info_path.exists():
+        return None
+    info = io.read_json(info_path)
+    if not isinstance(info, dict):
+        raise DataError(info_path, f"expected a JSON object, got {type(info).__name__}")
+    return str(info.get("spec_hash"))
+
+
 def _worker(spec_dict: dict, out_dir: str, resume: bool) -> str:
     spec = config.from_dict(SceneSpec, spec_dict)
     return str(generate_scene(spec, out_dir, resume=resume, progress=False))
@@ -189,21 +202,35 @@ def generate_scenes(
 def generate_suite(
     suite: SuiteSpec, out_dir: Path | str, resume: bool = False, workers: int = 1, only: list[str] | None = None
 ) -> list[Path]:
-    """Generate every scene of ``suite`` (or the named ones) into ``out_dir``; returns the scene dirs."""
+    """Generate every scene of ``suite`` (or the named ones) into ``out_dir``; returns the scene dirs.
+
+    ``out_dir`` is locked meanwhile (a second generation into it fails at once), and a scene of the
+    same name generated from another spec is never replaced, with or without ``resume``: it may be
+    the user's data (delete it first to regenerate it).
+    """
     specs = suite.scene_specs()
-    if only:
+    if only is not None:
         unknown = sorted(set(only) - {s.name for s in specs})
-        if unknown:
+        if unknown or not only:
             raise ConfigError(
-                f"unknown scene '{unknown[0]}' in --scenes (suite has: {', '.join(s.name for s in specs)})"
+                (f"unknown scene '{unknown[0]}' in --scenes" if unknown else "--scenes names no scene")
+                + f" (suite has: {', '.join(s.name for s in specs)})"
             )
         specs = [s for s in specs if s.name in only]
     out_dir = Path(out_dir)
-    if workers <= 1 or len(specs) == 1:
-        return [
-            generate_scene(s, out_dir, resume=resume, progress=True) for s in tqdm(specs, desc=suite.name, unit="scene")
-        ]
-    return generate_scenes(specs, out_dir, resume, workers, suite.name)
+    with paths.directory_lock(out_dir, "openreloc-bench generate", in_directory=False):
+        for s in specs:
+            if generated_spec_hash(out_dir / s.name) not in (None, spec_hash(s)):
+                raise ConfigError(
+                    f"{out_dir / s.name}: was generated from another spec (or generator version) than "
+                    f"{suite.name}'s scene '{s.name}'; delete it to regenerate it, or choose another --out"
+                )
+        if workers <= 1 or len(specs) == 1:
+            return [
+                generate_scene(s, out_dir, resume=resume, progress=True)
+                for s in tqdm(specs, desc=suite.name, unit="scene")
+            ]
+        return generate_scenes(specs, out_dir, resume, workers, suite.name)
 
 
 def training_specs(

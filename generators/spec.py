@@ -15,8 +15,9 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Literal
 
@@ -43,6 +44,13 @@ MIN_ROOM_SIDE_M = 2.0
 
 MAX_OBJECTS_PER_M2 = 2.5
 """Upper bound on objects per square metre of the smallest possible room (floor + surface + wall items)."""
+
+MAX_QUERIES = 10_000
+"""Upper bound on ``n_query``: each query is rendered in six splits, so more is a typo, not a benchmark."""
+
+MIN_MAPPING_STEP_M = 0.01
+MIN_MAPPING_STEP_DEG = 0.5
+"""Finer mapping steps emit frames faster than the renderer can draw them usefully (a typo, e.g. 0.0025 m)."""
 
 _NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
 
@@ -103,8 +111,12 @@ class SceneSpec:
 def validate_scene(spec: SceneSpec) -> None:
     """Raise a one-line :class:`ConfigError` naming the offending key."""
     n = spec.name
-    if not _NAME_RE.match(spec.name):
+    if not isinstance(n, str) or not _NAME_RE.match(n):
         raise ConfigError(f"scene '{n}': 'name' must be letters, digits, '-', '_' or '.'")
+    for f in fields(spec):  # a spec built in code: YAML values are checked by config.from_dict already
+        v = getattr(spec, f.name)
+        if isinstance(v, float) and not math.isfinite(v):
+            raise ConfigError(f"scene '{n}': '{f.name}' must be a finite number, got {v}")
     positive = {
         "width": spec.width,
         "height": spec.height,
@@ -163,6 +175,15 @@ def validate_scene(spec: SceneSpec) -> None:
         )
     if spec.n_displaced > spec.objects_per_room * spec.rooms * spec.floors:
         raise ConfigError(f"scene '{n}': 'n_displaced' exceeds the number of objects")
+    if spec.query_min_objects > spec.objects_per_room * spec.rooms * spec.floors:
+        raise ConfigError(f"scene '{n}': 'query_min_objects' exceeds the number of objects")
+    if spec.n_query > MAX_QUERIES:
+        raise ConfigError(f"scene '{n}': 'n_query' must be at most {MAX_QUERIES}, got {spec.n_query}")
+    if spec.mapping_step_m < MIN_MAPPING_STEP_M or spec.mapping_step_deg < MIN_MAPPING_STEP_DEG:
+        raise ConfigError(
+            f"scene '{n}': 'mapping_step_m' / 'mapping_step_deg' must be at least {MIN_MAPPING_STEP_M} m / "
+            f"{MIN_MAPPING_STEP_DEG} deg, got {spec.mapping_step_m} / {spec.mapping_step_deg}"
+        )
     if len(spec.light_levels) != 4 or any(not 0 < v <= 1 for v in spec.light_levels):
         raise ConfigError(f"scene '{n}': 'light_levels' must be 4 values in (0, 1], got {spec.light_levels}")
     if not 16 <= spec.width <= 4096 or not 16 <= spec.height <= 4096:

@@ -1,7 +1,12 @@
 """Typed configs: dataclasses with a docstring per field, strict YAML/dict in, YAML out.
 
-Unknown keys and wrongly typed values raise :class:`ConfigError` naming the key, so a typo in a
-suite or method config fails at load time instead of silently using a default.
+Unknown keys, duplicate keys and wrongly typed values raise :class:`ConfigError` naming the key, so a
+typo in a suite or method config fails at load time instead of silently using a default. Numbers are
+checked generically: a float field takes no NaN or infinity (unless the field opts in with
+``field(metadata=ALLOW_NONFINITE)``) and an integer field fits in 64 bits, so no value reaches numpy
+or torch as an overflow. Ranges are the config's own business: a dataclass checks them in its
+``__post_init__`` with :func:`check_ranges`, which :func:`from_dict` reports as a ConfigError naming
+the section (``openreloc.refinement: 'lr_rotation' must be > 0, got -1.0``).
 """
 
 from __future__ import annotations
@@ -9,6 +14,7 @@ from __future__ import annotations
 import ast
 import dataclasses
 import inspect
+import math
 import textwrap
 import types
 import typing
@@ -23,6 +29,11 @@ from openreloc_bench.errors import ConfigError
 
 T = TypeVar("T")
 
+ALLOW_NONFINITE = {"allow_nonfinite": True}
+"""Field metadata of a float field that accepts NaN and infinities (``field(default=..., metadata=ALLOW_NONFINITE)``)."""
+
+_INT64 = 2**63
+
 
 def from_dict(cls: type[T], data: dict[str, Any] | None, where: str = "") -> T:
     """Build dataclass ``cls`` from plain data, recursing into nested dataclass fields."""
@@ -32,12 +43,13 @@ def from_dict(cls: type[T], data: dict[str, Any] | None, where: str = "") -> T:
         raise ConfigError(f"{where or cls.__name__}: expected a mapping, got {type(data).__name__}")
     hints = typing.get_type_hints(cls)
     known = {f.name: f for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
-    unknown = sorted(set(data) - set(known))
+    unknown = sorted((k for k in data if k not in known), key=str)
     if unknown:
         raise ConfigError(f"unknown key '{prefix}{unknown[0]}' (known: {', '.join(sorted(known))})")
     kwargs = {}
     for key, value in data.items():
-        kwargs[key] = _coerce(hints[key], value, f"{prefix}{key}")
+        finite = not known[key].metadata.get("allow_nonfinite", False)
+        kwargs[key] = _coerce(hints[key], value, f"{prefix}{key}", finite)
     try:
         return cls(**kwargs)
     except (TypeError, ValueError) as e:
@@ -54,7 +66,7 @@ def merge(base: dict[str, Any], overrides: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-def _coerce(tp: Any, value: Any, key: str) -> Any:
+def _coerce(tp: Any, value: Any, key: str, finite: bool = True) -> Any:
     origin = typing.get_origin(tp)
     if dataclasses.is_dataclass(tp):
         return from_dict(tp, value, key)  # type: ignore[arg-type]
@@ -62,13 +74,16 @@ def _coerce(tp: Any, value: Any, key: str) -> Any:
         args = typing.get_args(tp)
         if value is None and type(None) in args:
             return None
+        errors = []
         for a in args:
             if a is type(None):
                 continue
             try:
-                return _coerce(a, value, key)
-            except ConfigError:
-                continue
+                return _coerce(a, value, key, finite)
+            except ConfigError as e:
+                errors.append(e)
+        if len(errors) == 1:  # ``X | None``: X's own message says what is wrong
+            raise errors[0]
         raise ConfigError(f"'{key}': value {value!r} does not match {tp}")
     if origin is typing.Literal:
         if value not in typing.get_args(tp):
@@ -78,8 +93,12 @@ def _coerce(tp: Any, value: Any, key: str) -> Any:
         if not isinstance(value, (list, tuple)):
             raise ConfigError(f"'{key}': expected a list, got {value!r}")
         args = typing.get_args(tp)
+        if origin is tuple and args and args[-1] is not Ellipsis:  # a fixed-length tuple
+            if len(value) != len(args):
+                raise ConfigError(f"'{key}': expected {len(args)} values, got {len(value)}")
+            return tuple(_coerce(a, v, f"{key}[{i}]", finite) for i, (a, v) in enumerate(zip(args, value)))
         item_t = args[0] if args else Any
-        items = [_coerce(item_t, v, f"{key}[{i}]") for i, v in enumerate(value)]
+        items = [_coerce(item_t, v, f"{key}[{i}]", finite) for i, v in enumerate(value)]
         return tuple(items) if origin is tuple else items
     if origin is dict or tp is dict:
         if not isinstance(value, dict):
@@ -93,19 +112,62 @@ def _coerce(tp: Any, value: Any, key: str) -> Any:
         return value
     if tp is float:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise ConfigError(f"'{key}': expected a number, got {value!r}")
+            raise ConfigError(f"'{key}': expected a number, got {value!r}{_number_hint(value)}")
+        if finite and not math.isfinite(value):
+            raise ConfigError(f"'{key}': expected a finite number, got {value!r}")
         return float(value)
     if tp is int:
         if isinstance(value, bool) or not isinstance(value, int):
-            raise ConfigError(f"'{key}': expected an integer, got {value!r}")
+            raise ConfigError(f"'{key}': expected an integer, got {value!r}{_number_hint(value)}")
+        if not -_INT64 <= value < _INT64:
+            raise ConfigError(f"'{key}': {value} is out of range (a 64-bit integer)")
         return value
     if tp is str:
         if not isinstance(value, str):
             raise ConfigError(f"'{key}': expected a string, got {value!r}")
         return value
     if tp is Path:
+        if not isinstance(value, (str, Path)):
+            raise ConfigError(f"'{key}': expected a path, got {value!r}")
         return Path(value)
     return value
+
+
+def _number_hint(value: Any) -> str:
+    """A hint for text that reads as a number: PyYAML (YAML 1.1) takes ``1e-3`` or ``'3'`` for text."""
+    try:
+        number = float(value) if isinstance(value, str) else math.nan
+    except ValueError:
+        return ""
+    if not math.isfinite(number):
+        return ""
+    return " (text in YAML: write exponents with a dot and a sign, e.g. 1.0e-3, and numbers without quotes)"
+
+
+def check_ranges(
+    cfg: Any,
+    positive: tuple[str, ...] = (),
+    non_negative: tuple[str, ...] = (),
+    at_least_one: tuple[str, ...] = (),
+    share: tuple[str, ...] = (),
+) -> None:
+    """ValueError naming the first listed field of ``cfg`` outside its range: ``positive`` (> 0),
+    ``non_negative`` (>= 0), ``at_least_one`` (>= 1: counts, sizes, strides) or ``share`` (in [0, 1]).
+    A list or tuple field is checked item by item. NaN fails every range.
+
+    For ``__post_init__``, so that a config built in code is checked as one read from YAML is."""
+    rules = (
+        (positive, lambda v: v > 0, "> 0"),
+        (non_negative, lambda v: v >= 0, ">= 0"),
+        (at_least_one, lambda v: v >= 1, ">= 1"),
+        (share, lambda v: 0 <= v <= 1, "in [0, 1]"),
+    )
+    for names, ok, what in rules:
+        for name in names:
+            value = getattr(cfg, name)
+            for v in value if isinstance(value, (list, tuple)) else (value,):
+                if isinstance(v, bool) or not isinstance(v, (int, float)) or not ok(v):
+                    raise ValueError(f"'{name}' must be {what}, got {value!r}")
 
 
 def to_dict(cfg: Any) -> dict[str, Any]:
@@ -132,9 +194,56 @@ def load_yaml(path: Path | str) -> Any:
         raise ConfigError(f"{path}: file not found")
     text = io.read_text(path)
     try:
-        return yaml.safe_load(text)
+        return parse_yaml(text)
     except yaml.YAMLError as e:
-        raise ConfigError(f"{path}: invalid YAML ({str(e).splitlines()[0]})") from None
+        raise ConfigError(f"{path}: invalid YAML ({_yaml_problem(e)})") from None
+
+
+def load_mapping(path: Path | str) -> dict[str, Any]:
+    """A YAML file of config keys (empty: no keys); ConfigError unless it is a mapping with text keys."""
+    data = load_yaml(path)
+    if data is None:
+        return {}
+    if not isinstance(data, dict):
+        raise ConfigError(f"{path}: expected a mapping of config keys, got {type(data).__name__}")
+    odd = [k for k in data if not isinstance(k, str)]
+    if odd:
+        raise ConfigError(f"{path}: key {odd[0]!r} is not a name (config keys are text)")
+    return data
+
+
+def parse_yaml(text: str) -> Any:
+    """``yaml.safe_load`` that also refuses a key given twice in one mapping."""
+    return yaml.load(text, Loader=_StrictLoader)  # a SafeLoader subclass: no arbitrary objects
+
+
+def _yaml_problem(e: yaml.YAMLError) -> str:
+    """One line: what is wrong and where (line, column), from a PyYAML error."""
+    if isinstance(e, yaml.MarkedYAMLError) and e.problem:
+        mark = e.problem_mark or e.context_mark
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+        return f"{e.problem}{where}"
+    return " ".join(str(e).split())
+
+
+class _StrictLoader(yaml.SafeLoader):
+    """``yaml.safe_load`` that refuses a key given twice in one mapping (PyYAML keeps the last one
+    silently, so ``seed: 1`` followed by ``seed: 2`` would run with 2 without a word)."""
+
+    def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict[Any, Any]:
+        seen: set[Any] = set()
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=True)
+            try:
+                duplicate = key in seen
+                seen.add(key)
+            except TypeError:  # an unhashable key: the base class reports it
+                break
+            if duplicate:
+                raise yaml.constructor.ConstructorError(
+                    "while constructing a mapping", node.start_mark, f"found duplicate key {key!r}", key_node.start_mark
+                )
+        return super().construct_mapping(node, deep=deep)
 
 
 def parse_overrides(items: list[str]) -> dict[str, Any]:
@@ -145,7 +254,7 @@ def parse_overrides(items: list[str]) -> dict[str, Any]:
         if not sep or not key.strip():
             raise ConfigError(f"--set expects KEY=VALUE, got {item!r}")
         try:
-            value = yaml.safe_load(raw) if raw.strip() else ""
+            value = parse_yaml(raw) if raw.strip() else ""
         except yaml.YAMLError:
             value = raw
         node = out

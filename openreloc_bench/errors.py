@@ -17,6 +17,10 @@ class DataError(OpenRelocError):
         self.problem = problem
         super().__init__(f"{path}: {problem}")
 
+    def __reduce__(self) -> tuple[type, tuple[Path, str]]:
+        # raised in a worker process (scene generation, executors), it is pickled back to the caller
+        return type(self), (self.path, self.problem)
+
 
 class ConfigError(OpenRelocError):
     """A config or spec value is unknown or out of range; the message names the key."""

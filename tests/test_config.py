@@ -4,7 +4,17 @@ from typing import Literal
 
 import pytest
 
-from openreloc_bench.config import describe, dump_yaml, field_docs, from_dict, load_yaml, merge
+from openreloc_bench.config import (
+    ALLOW_NONFINITE,
+    check_ranges,
+    describe,
+    dump_yaml,
+    field_docs,
+    from_dict,
+    load_mapping,
+    load_yaml,
+    merge,
+)
 from openreloc_bench.errors import ConfigError
 
 
@@ -69,3 +79,65 @@ def test_merge_overrides_section_by_section_without_touching_its_inputs():
         "new": {"k": 6},
     }
     assert base["inner"]["y"] == {"deep": 1, "keep": 2} and overrides["inner"] == {"y": {"deep": 3}, "z": 4}
+
+
+@dataclass
+class Numbers:
+    rate: float = 0.5
+    """A share."""
+    count: int = 3
+    """A count."""
+    bound: float = field(default=1.0, metadata=ALLOW_NONFINITE)
+    """May be infinite (opts in)."""
+    levels: list[float] = field(default_factory=lambda: [0.5])
+    """Shares."""
+
+    def __post_init__(self) -> None:
+        check_ranges(self, at_least_one=("count",), share=("rate", "levels"))
+
+
+@pytest.mark.parametrize(
+    "data, message",
+    [
+        ({"rate": float("nan")}, "'rate': expected a finite number, got nan"),
+        ({"rate": float("-inf")}, "'rate': expected a finite number"),
+        ({"levels": [0.5, float("inf")]}, "'levels[1]': expected a finite number"),
+        ({"count": 2**63}, "'count': 9223372036854775808 is out of range"),
+        ({"rate": "1e-3"}, "write exponents with a dot"),
+        ({"rate": 1.5}, "Numbers: 'rate' must be in [0, 1], got 1.5"),
+        ({"count": 0}, "Numbers: 'count' must be >= 1, got 0"),
+        ({"levels": [0.5, -0.1]}, "'levels' must be in [0, 1]"),
+        ({1: 2, "b": 3}, "unknown key '1'"),
+    ],
+)
+def test_numbers_are_finite_and_in_range(data, message):
+    with pytest.raises(ConfigError) as e:
+        from_dict(Numbers, data)
+    assert message in str(e.value)
+
+
+def test_a_field_may_opt_in_to_infinity_and_code_is_checked_like_yaml():
+    assert from_dict(Numbers, {"bound": float("inf")}).bound == float("inf")
+    with pytest.raises(ValueError, match="'count' must be >= 1"):
+        Numbers(count=-2)
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ("seed: 1\nseed: 2\n", "found duplicate key 'seed' at line 2, column 1"),
+        ("scenes:\n  - name: a\n    name: b\n", "found duplicate key 'name' at line 3"),
+    ],
+)
+def test_a_key_given_twice_is_an_error_not_the_last_one_silently(tmp_path: Path, text: str, message: str):
+    (tmp_path / "x.yaml").write_text(text)
+    with pytest.raises(ConfigError, match=message):
+        load_yaml(tmp_path / "x.yaml")
+
+
+def test_a_mapping_file_needs_text_keys(tmp_path: Path):
+    (tmp_path / "x.yaml").write_text("1: a\n")
+    with pytest.raises(ConfigError, match="key 1 is not a name"):
+        load_mapping(tmp_path / "x.yaml")
+    (tmp_path / "y.yaml").write_text("")
+    assert load_mapping(tmp_path / "y.yaml") == {}

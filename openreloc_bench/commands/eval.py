@@ -31,6 +31,9 @@ NAME = "eval"
 HELP = "evaluate methods on a scene suite (maps, queries, metrics)"
 ORDER = 40
 
+MAX_TIMEOUT_S = 1e7
+"""Upper bound of --timeout / --map-timeout (about four months; larger values overflow the OS's wait)."""
+
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     src = p.add_mutually_exclusive_group(required=True)
@@ -76,8 +79,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
 
 
-def _csv(s: str) -> list[str]:
-    return [x.strip() for x in s.split(",") if x.strip()]
+def _csv(s: str, flag: str) -> list[str]:
+    """Comma-separated names, each once, in order; ConfigError when there is none."""
+    names = list(dict.fromkeys(x.strip() for x in s.split(",") if x.strip()))
+    if not names:
+        raise ConfigError(f"{flag} names nothing: give comma-separated names")
+    return names
 
 
 def method_runs(names: list[str], config_files: list[str], ablations: bool) -> list[runner.MethodRun]:
@@ -89,10 +96,9 @@ def method_runs(names: list[str], config_files: list[str], ablations: bool) -> l
             raise ConfigError(f"--method-config expects NAME=YAML, got '{item}'")
         if name not in names:
             raise ConfigError(f"--method-config names '{name}', which is not in --methods")
-        data = config.load_yaml(path) or {}
-        if not isinstance(data, dict):
-            raise ConfigError(f"{path}: expected a mapping of config keys")
-        overrides[name] = data
+        if name in overrides:
+            raise ConfigError(f"--method-config names '{name}' twice; merge the settings into one file")
+        overrides[name] = config.load_mapping(path)
     runs = [runner.MethodRun(n, n, overrides.get(n, {})) for n in names]
     if ablations:
         base = overrides.get(ABLATED_METHOD, {})
@@ -113,32 +119,45 @@ def scene_names(entries: list[str], data: Path) -> list[str]:
                 raise ConfigError(f"--scenes '{entry}' is not a scene directory directly under --data {data}")
             entry = p.name
         names.append(paths.plain_name(entry, "--scenes entry"))
-    return names
+    return list(dict.fromkeys(names))
 
 
 def _seeds(s: str) -> list[int]:
+    if not s.strip():
+        return []
     try:
-        return [int(x) for x in _csv(s)]
+        seeds = [int(x) for x in _csv(s, "--seeds")]
     except ValueError:
         raise ConfigError(f"--seeds expects comma-separated integers, got '{s}'") from None
+    wrong = [x for x in seeds if not 0 <= x < 2**63]
+    if wrong:
+        raise ConfigError(f"--seeds: {wrong[0]} is out of range (seeds are 64-bit integers >= 0)")
+    return seeds
 
 
 def run(args: argparse.Namespace) -> int:
     if args.workers < 1:
         raise ConfigError("--workers must be >= 1")
     for flag, value in (("--timeout", args.timeout), ("--map-timeout", args.map_timeout)):
-        if not math.isfinite(value) or value < 0:
-            raise ConfigError(f"{flag} must be a finite number of seconds >= 0, got {value}")
-    splits = _csv(args.splits)
+        if not math.isfinite(value) or not 0 <= value <= MAX_TIMEOUT_S:
+            raise ConfigError(f"{flag} must be a number of seconds in [0, {MAX_TIMEOUT_S:g}], got {value}")
+    splits = _csv(args.splits, "--splits")
+    if "mapping" in splits:
+        raise ConfigError("--splits: 'mapping' builds the maps; localizing its own frames measures nothing")
     if args.robustness:
         splits += [r.key for r in ROBUSTNESS_ROWS if r.key not in splits]
     runner.import_plugins(args.plugin)
-    runs = method_runs(_csv(args.methods), args.method_config, args.ablations)
-    scenes = scene_names(_csv(args.scenes), args.data) if args.scenes else ensure_suite_scenes(args.suite, args.data)
+    runs = method_runs(_csv(args.methods, "--methods"), args.method_config, args.ablations)
+    seeds = _seeds(args.seeds)
+    runner.seeded_runs(runs, seeds)  # unknown methods and bad settings fail here, before scenes are generated
+    if args.scenes is not None:
+        scenes = scene_names(_csv(args.scenes, "--scenes"), args.data)
+    else:
+        scenes = ensure_suite_scenes(args.suite, args.data)
     cfg = runner.EvalConfig(
         data=args.data, out=args.out, scenes=scenes, runs=runs, splits=splits, track=args.track,
         executor=args.executor, workers=args.workers, ray_address=args.ray_address, resume=args.resume,
-        timeout_s=args.timeout, map_timeout_s=args.map_timeout, plugins=args.plugin, seeds=_seeds(args.seeds),
+        timeout_s=args.timeout, map_timeout_s=args.map_timeout, plugins=args.plugin, seeds=seeds,
     )  # fmt: skip
     report = runner.evaluate(cfg)
     queries = runner.load_run_queries(args.out)

@@ -2,7 +2,8 @@
 
 Each scene gets mapping, query, query_light1..4 and query_displaced splits in the ScanNet-export
 layout. ``--resume`` keeps finished frames of an interrupted run; ``--workers N`` renders N scenes
-in parallel processes.
+in parallel processes. A scene folder generated from another spec (or holding other files) is never
+replaced, and OUT is locked while generation runs.
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--resume",
         action="store_true",
-        help="reuse finished frames of an interrupted run (without it, existing scenes are regenerated)",
+        help="reuse finished frames of an interrupted run (without it, existing scenes of the same spec are regenerated)",
     )
     parser.add_argument("--workers", type=int, default=1, help="scenes generated in parallel (default 1)")
     parser.add_argument("--scenes", type=str, default=None, help="comma-separated scene names (default: all)")
@@ -30,12 +31,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from generators.generate import generate_suite
     from generators.spec import load_suite
+    from openreloc_bench.data import paths
     from openreloc_bench.errors import ConfigError
 
     if args.workers < 1:
         raise ConfigError(f"--workers must be >= 1, got {args.workers}")
     suite = load_suite(args.suite)
-    only = [s.strip() for s in args.scenes.split(",") if s.strip()] if args.scenes else None
+    for spec in suite.scene_specs():  # a scene directory is replaced when regenerated: never over the suite file
+        paths.check_output(args.out / spec.name, [args.suite], "scene directory")
+    only = [s.strip() for s in args.scenes.split(",") if s.strip()] if args.scenes is not None else None
     for path in generate_suite(suite, args.out, resume=args.resume, workers=args.workers, only=only):
         print(path)
     return 0

@@ -128,9 +128,9 @@ def _json_safe(v: Any) -> Any:
 def run(args: argparse.Namespace) -> int:
     for flag, out in (("--out", args.out), ("--diagnostics", args.diagnostics)):
         if out is not None:
-            if out.is_dir():
-                raise ConfigError(f"{flag} {out} is a directory; give a file path")
-            paths.check_output(out, [args.scene, args.map], flag)
+            paths.check_output_file(out, [args.scene, args.map], flag)
+    if args.diagnostics is not None and args.diagnostics.resolve() == args.out.resolve():
+        raise ConfigError(f"--diagnostics and --out are the same file {args.out}; give two paths")
     method = create_method(args.method, **method_overrides(args))
     seq = Scene(args.scene).sequence(args.split)
     method.load_map(args.map)

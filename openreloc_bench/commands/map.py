@@ -11,11 +11,12 @@ keys reach nested sections, values are parsed as YAML), e.g.::
 from __future__ import annotations
 
 import argparse
+import shutil
 import time
 from pathlib import Path
 
 from openreloc_bench.commands.options import add_method_arguments, method_overrides
-from openreloc_bench.data import paths
+from openreloc_bench.data import mapfile, paths
 from openreloc_bench.data.scene import Scene
 from openreloc_bench.methods import create_method
 
@@ -34,9 +35,21 @@ def run(args: argparse.Namespace) -> int:
     paths.check_output(args.out, [args.scene], "--out")
     method = create_method(args.method, **method_overrides(args))
     seq = Scene(args.scene).sequence("mapping")
-    t0 = time.perf_counter()
-    method.build_map(seq, args.out)
-    elapsed = time.perf_counter() - t0
+    # the directory holds the map alone (its size is the map's): a previous map there is replaced,
+    # anything else is refused; no other map build writes into it meanwhile
+    with paths.directory_lock(args.out, "openreloc-bench map", in_directory=False):
+        mapfile.clear_file_set(args.out)
+        t0 = time.perf_counter()
+        try:
+            method.build_map(seq, args.out)
+        except BaseException:  # interrupted or failed: what is there is a part of this map, never a map
+            for p in args.out.iterdir():
+                if p.is_dir() and not p.is_symlink():
+                    shutil.rmtree(p)
+                else:
+                    p.unlink()
+            raise
+        elapsed = time.perf_counter() - t0
     size = sum(p.stat().st_size for p in Path(args.out).rglob("*") if p.is_file())
     print(
         f"{args.method}: map of {len(seq)} mapping frames written to {args.out} ({size / 1e6:.3f} MB, {elapsed:.1f} s)"

@@ -7,7 +7,6 @@ from pathlib import Path
 from typing import Any
 
 from openreloc_bench import config
-from openreloc_bench.errors import ConfigError
 
 
 def add_method_arguments(p: argparse.ArgumentParser) -> None:
@@ -26,9 +25,5 @@ def add_method_arguments(p: argparse.ArgumentParser) -> None:
 
 def method_overrides(args: argparse.Namespace) -> dict[str, Any]:
     """The method config from ``--config`` then ``--set`` (later wins)."""
-    base = config.load_yaml(args.config) if args.config else {}
-    if base is None:
-        base = {}
-    if not isinstance(base, dict):
-        raise ConfigError(f"{args.config}: expected a mapping of config fields")
+    base = config.load_mapping(args.config) if args.config else {}
     return config.merge(base, config.parse_overrides(args.overrides))

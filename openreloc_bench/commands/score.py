@@ -2,8 +2,9 @@
 
 SUBMISSION_DIR holds one file per scene, ``<scene>.txt`` (names ``<split>/<frame id>``), or one per
 split, ``<scene>/<split>.txt``; each line ``name qw qx qy qz tx ty tz`` with (q, t) of T_cw.
-Queries without a line count as failures; duplicate names, NaNs and non-unit quaternions are errors.
-Tables (CSV + JSON) are written to --out, in the layout ``eval`` writes, for ``leaderboard``.
+Queries without a line count as failures; duplicate names, NaNs, non-unit quaternions, files naming
+no scene under --data and a scene given in both layouts are errors. Tables (CSV + JSON) are written
+to --out, in the layout ``eval`` writes, for ``leaderboard``.
 """
 
 from __future__ import annotations
@@ -13,6 +14,8 @@ from pathlib import Path
 
 import pandas as pd
 
+from openreloc_bench.data import paths
+from openreloc_bench.errors import ConfigError
 from openreloc_bench.harness import score, tables
 from openreloc_bench.harness.suites import suite_scene_names
 from openreloc_bench.methods import TRACKS
@@ -31,7 +34,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--splits", default="query", help="comma-separated query splits to score")
     p.add_argument("--method", help="name in the tables (default: the submission directory's name)")
     p.add_argument("--track", default="predicted", choices=TRACKS, help="track the submission was produced in")
-    p.add_argument("--out", type=Path, help="where tables go (default: SUBMISSION_DIR/scores)")
+    p.add_argument(
+        "--out",
+        type=Path,
+        help="where tables go (default: ./<SUBMISSION_DIR name>-scores; never inside the submission or the data)",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -39,11 +46,13 @@ def run(args: argparse.Namespace) -> int:
         scenes = suite_scene_names(args.suite)
     else:
         scenes = score.submission_scenes(args.submission, args.data)
-    splits = [s.strip() for s in args.splits.split(",") if s.strip()]
-    queries = score.score_submission(
-        args.submission, args.data, scenes, splits, args.method or args.submission.resolve().name, args.track
-    )
-    out = args.out or args.submission / "scores"
+    splits = list(dict.fromkeys(s.strip() for s in args.splits.split(",") if s.strip()))
+    if not splits:
+        raise ConfigError("--splits names no split")
+    name = args.submission.resolve().name
+    out = args.out or Path(f"{name}-scores")
+    paths.check_output(out, [args.submission, *(args.data / s for s in scenes)], "--out")
+    queries = score.score_submission(args.submission, args.data, scenes, splits, args.method or name, args.track)
     maps = pd.DataFrame(columns=["map_hash", "scene", "map_mb", "mapping_time_s"])
     _, suite, _ = tables.write_tables(out / "tables", queries, maps)
     missing = queries[queries["reason"] == "missing"]

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from openreloc_bench.data import paths
 from openreloc_bench.openreloc.map import ObjectMap
 
 NAME = "show-map"
@@ -71,8 +72,9 @@ def draw_map(m: ObjectMap, out: Path) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    out = args.out or args.map_dir.parent / f"{args.map_dir.resolve().name}.png"
+    paths.check_output_file(out, [args.map_dir], "--out", suffix=".png")
     m = ObjectMap.load(args.map_dir)
-    out = args.out or args.map_dir.parent / f"{args.map_dir.name}.png"
     draw_map(m, out)
     print(out)
     return 0

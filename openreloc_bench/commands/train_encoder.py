@@ -4,20 +4,28 @@ Scenes are generated with seeds reserved for training (>= generators.spec.TRAINI
 a benchmark suite): ``--scenes`` for training and ``--eval-scenes`` more, from a disjoint seed range,
 for held-out evaluation. Crops come from the mapping, query and lighting splits (viewpoint and
 illumination diversity). Writes ``image_tower.pt`` (fp16), ``config.json`` (shapes, hyper-parameters,
-data seeds) and ``evaluation.json`` into ``--out``. With ``--data DIR`` holding ``train/`` and
-``eval/`` scene folders already, those scenes are used as they are and nothing is generated.
+data seeds) and ``evaluation.json`` into ``--out`` (locked meanwhile), and caches the crops in
+``--out/crops/``. With ``--data DIR`` holding ``train/`` and ``eval/`` scene folders already, those
+scenes are used as they are (never written to) and nothing is generated.
 """
 
 from __future__ import annotations
 
 import argparse
 import hashlib
+import io as io_
 import json
+import math
 import platform
 import time
+import zipfile
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from openreloc_bench.errors import ConfigError
+
+if TYPE_CHECKING:
+    import torch
 
 NAME = "train-encoder"
 HELP = "train the offline image encoder (aligned to frozen MiniLM) on generated training scenes"
@@ -84,23 +92,48 @@ def _generate(root: Path, prefix: str, seeds: list[int], args: argparse.Namespac
     return generate_scenes(specs, root, resume=True, workers=args.workers, desc=f"{prefix} scenes")
 
 
+def _check_numbers(args: argparse.Namespace) -> None:
+    """One-line errors for flags out of range, before any scene is generated or crop cut."""
+    at_least = {
+        "--scenes": (args.scenes, 1), "--eval-scenes": (args.eval_scenes, 1), "--epochs": (args.epochs, 1),
+        "--views": (args.views, 1), "--threads": (args.threads, 1), "--pairs-per-batch": (args.pairs_per_batch, 1),
+        "--input-size": (args.input_size, 1), "--workers": (args.workers, 1), "--seed": (args.seed, 0),
+        "--scenes-per-batch": (args.scenes_per_batch, 0), "--width": (args.width, 16), "--height": (args.height, 16),
+    }  # fmt: skip
+    for flag, (value, low) in at_least.items():
+        if value < low:
+            raise ConfigError(f"{flag} must be >= {low}, got {value}")
+    if not math.isfinite(args.instance_weight) or args.instance_weight < 0:
+        raise ConfigError(f"--instance-weight must be a finite number >= 0, got {args.instance_weight}")
+    if not 0.0 <= args.repeat_threshold <= 1.0:
+        raise ConfigError(f"--repeat-threshold must be in [0, 1], got {args.repeat_threshold}")
+
+
 def run(args: argparse.Namespace) -> int:
+    from openreloc_bench.data import paths
+    from openreloc_bench.vision.training import training_device
+
+    _check_numbers(args)
+    device = training_device(args.device)  # refuse a missing GPU before generating scenes
+    if args.data is not None:  # the user's scenes: weights and caches never go among them
+        paths.check_output(args.out, [args.data / "train", args.data / "eval"], "--out")
+    with paths.directory_lock(args.out, "openreloc-bench train-encoder"):
+        return _train(args, device)
+
+
+def _train(args: argparse.Namespace, device: torch.device) -> int:
     # heavy imports here, not at module level: the CLI imports every command module at start-up
     import numpy as np
     import torch
 
     from openreloc_bench import config as cfgmod
     from openreloc_bench.data import io
+    from openreloc_bench.data.scene import check_scene_info
     from openreloc_bench.vision import vocabulary as voc
     from openreloc_bench.vision.crops import CropSet, crops_from_scenes
     from openreloc_bench.vision.offline import MINILM_PACKAGE, OfflineEncoder, TextTower, TowerConfig
-    from openreloc_bench.vision.training import TrainConfig, evaluate, save_weights, train_tower, training_device
+    from openreloc_bench.vision.training import TrainConfig, evaluate, save_weights, train_tower
 
-    if args.scenes < 1 or args.eval_scenes < 1 or args.epochs < 1 or args.views < 1:
-        raise ConfigError("--scenes, --eval-scenes, --epochs and --views must be >= 1")
-    if not 0.0 <= args.repeat_threshold <= 1.0:
-        raise ConfigError("--repeat-threshold must be in [0, 1]")
-    device = training_device(args.device)  # refuse a missing GPU before generating scenes
     torch.set_num_threads(args.threads)
     data = args.data or args.out / "scenes"
     train_dirs, eval_dirs = _scene_dirs(data / "train"), _scene_dirs(data / "eval")
@@ -115,26 +148,28 @@ def run(args: argparse.Namespace) -> int:
         train_dirs = _generate(data / "train", "train", train_seeds, args)
         eval_dirs = _generate(data / "eval", "eval", eval_seeds, args)
         print(f"generated {len(train_dirs) + len(eval_dirs)} scenes in {time.time() - t0:.0f} s", flush=True)
-    train_seeds = [io.read_json(d / "scene.json").get("seed") for d in train_dirs]
-    eval_seeds = [io.read_json(d / "scene.json").get("seed") for d in eval_dirs]
+    infos = {d: check_scene_info(io.read_json(d / "scene.json"), d / "scene.json") for d in train_dirs + eval_dirs}
+    train_seeds = [infos[d].get("seed") for d in train_dirs]
+    eval_seeds = [infos[d].get("seed") for d in eval_dirs]
     if set(train_seeds) & set(eval_seeds):
         raise ConfigError("training and evaluation scenes share seeds; evaluation must be on held-out scenes")
     sets = []
     for name, dirs, seed in (("train", train_dirs, args.seed), ("eval", eval_dirs, args.seed + 1)):
-        # crops are cached beside the scenes, keyed by the scene list and sampling, so re-training is cheap
-        key = hashlib.sha1(
-            json.dumps([[d.name for d in dirs], args.views, seed, list(CROP_SPLITS)]).encode()
-        ).hexdigest()[:12]
-        cache = data / f"crops-{name}-{key}.npz"
-        if cache.is_file():
+        # crops are cached in OUT, keyed by the scenes (names and spec hashes: a regenerated scene is cut
+        # again) and the sampling, so re-training is cheap; a damaged cache is cut again too
+        scenes = [[d.name, infos[d].get("spec_hash")] for d in dirs]
+        key = hashlib.sha1(json.dumps([scenes, args.views, seed, list(CROP_SPLITS)]).encode()).hexdigest()[:12]
+        cache = args.out / "crops" / f"{name}-{key}.npz"
+        try:
             sets.append(CropSet.load(cache))
-        else:
-            sets.append(
-                crops_from_scenes(
-                    dirs, splits=CROP_SPLITS, max_views_per_object=args.views, rng=np.random.default_rng(seed)
-                )
+        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile):
+            crops = crops_from_scenes(
+                dirs, splits=CROP_SPLITS, max_views_per_object=args.views, rng=np.random.default_rng(seed)
             )
-            sets[-1].save(cache)
+            buf = io_.BytesIO()
+            crops.save(buf)
+            io.atomic_write_bytes(cache, buf.getvalue())
+            sets.append(crops)
     train, held = sets
     if len(train) < 2 or len(held) < 1:
         raise ConfigError(

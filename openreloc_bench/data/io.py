@@ -198,7 +198,8 @@ def read_text(path: Path | str) -> str:
         raise DataError(path, "file not found")
     data = path.read_bytes()
     if b"\x00" in data:
-        raise DataError(path, "not a text file (binary content)")
+        binary = "UTF-16 text: save it as UTF-8" if data.startswith((b"\xff\xfe", b"\xfe\xff")) else "binary content"
+        raise DataError(path, f"not a text file ({binary})")
     try:
         return data.decode("utf-8-sig")
     except UnicodeDecodeError as e:

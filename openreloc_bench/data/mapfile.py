@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from openreloc_bench.data import io
-from openreloc_bench.errors import DataError
+from openreloc_bench.errors import ConfigError, DataError
 
 MANIFEST = "manifest.json"
 
@@ -61,7 +61,59 @@ def read_file_set(
     files = manifest.get("files")
     if not isinstance(files, dict) or (expected is not None and set(files) != expected):
         raise DataError(manifest_path, f"manifest must list exactly {', '.join(sorted(expected or ()))}")
+    foreign = [n for n in files if n in ("", ".", "..") or Path(n).name != n]
+    if foreign:  # a set's files lie in its directory: never read one from elsewhere
+        raise DataError(manifest_path, f"lists '{foreign[0]}', which is not a file name in {directory}")
     return {name: _verified_bytes(directory / name, entry) for name, entry in files.items()}
+
+
+def is_intact(directory: Path | str) -> bool:
+    """Whether ``directory`` holds a file set (of any format) whose every listed file matches its
+    manifest: a cache checks a stored map before reusing it."""
+    directory = Path(directory)
+    try:
+        files = io.read_json(directory / MANIFEST).get("files")
+        for name, entry in files.items():
+            if Path(name).name != name or name in ("", ".", ".."):
+                return False
+            _verified_bytes(directory / name, entry)
+    except (DataError, AttributeError, TypeError):
+        return False
+    return True
+
+
+def clear_file_set(directory: Path | str) -> None:
+    """Make ``directory`` ready for a new file set: remove the one it holds (the files its manifest
+    lists, the manifest first) and dead writers' temp files; a missing or empty directory is ready.
+
+    Anything else in it is refused with a ConfigError and nothing is removed: the directory is not a
+    file set (``map --out`` naming a folder of the user's), or the user's files are mixed into one, or
+    an interrupted build left payload files without a manifest; writing there would overwrite files of
+    the same names or count foreign bytes as the map's size.
+    """
+    directory = Path(directory)
+    if not directory.is_dir():
+        return
+    io.remove_stray_temps(directory)
+    entries = {p.name for p in directory.iterdir()}
+    manifest = directory / MANIFEST
+    listed: set[str] = set()
+    if manifest.is_file():
+        try:
+            doc = io.read_json(manifest)
+        except DataError:
+            doc = None
+        files = doc.get("files") if isinstance(doc, dict) else None
+        listed = {n for n in files if isinstance(n, str)} & entries if isinstance(files, dict) else set()
+    others = sorted(entries - listed - {MANIFEST})
+    if entries and (not manifest.is_file() or others):
+        what = f"'{others[0]}'" if others else "files"
+        raise ConfigError(
+            f"{directory} holds {what} that no {MANIFEST} there lists (not a map, or a damaged one): "
+            "remove it or choose a new or empty directory"
+        )
+    for name in [MANIFEST, *sorted(listed)]:  # the manifest first: a half-cleared set is no longer a set
+        (directory / name).unlink(missing_ok=True)
 
 
 def check_format(doc: Any, path: Path, format_name: str, version: int) -> None:

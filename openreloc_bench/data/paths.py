@@ -49,28 +49,46 @@ def confined(path: Path, root: Path, what: str) -> Path:
     return p
 
 
+def check_output_file(output: Path, inputs: Iterable[Path], what: str, suffix: str = "") -> Path:
+    """:func:`check_output` for a file to write: also refused when it is an existing directory or,
+    with ``suffix`` (``".png"``), when its name ends otherwise (the writer picks its format by it)."""
+    if Path(output).is_dir():
+        raise ConfigError(f"{what} {output} is a directory; give a file path")
+    if suffix and Path(output).suffix.lower() != suffix:
+        raise ConfigError(f"{what} {output} must end in {suffix}")
+    return check_output(output, inputs, what)
+
+
 @contextmanager
-def directory_lock(directory: Path, what: str) -> Iterator[None]:
+def directory_lock(directory: Path, what: str, in_directory: bool = True) -> Iterator[None]:
     """Hold an exclusive lock on ``directory`` (created if needed) for a long job writing into it.
 
     A second job on the same directory fails at once with a one-line error naming the holder's pid,
     instead of both computing everything and one removing the other's files in flight. The lock is an
-    ``flock`` on a dot file: the kernel releases it when its holder dies, even by SIGKILL.
+    ``flock`` on a dot file: the kernel releases it when its holder dies, even by SIGKILL. With
+    ``in_directory=False`` the directory itself is locked and nothing is written into it (a map
+    directory, every byte of which counts as the map's size; a dataset folder, which stays as the
+    user keeps it); the holder's pid is then unknown.
     """
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
-    path = directory / LOCK_NAME
-    fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
+    if in_directory:
+        fd = os.open(directory / LOCK_NAME, os.O_RDWR | os.O_CREAT, 0o666)
+    else:
+        fd = os.open(directory, os.O_RDONLY | os.O_DIRECTORY)
     try:
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
-            holder = os.pread(fd, 32, 0).decode(errors="replace").strip() or "unknown"
+            holder = f"another {what}"
+            if in_directory:
+                holder += f" (pid {os.pread(fd, 32, 0).decode(errors='replace').strip() or 'unknown'})"
             raise ConfigError(
-                f"{directory}: another {what} (pid {holder}) is writing here; wait for it or choose another directory"
+                f"{directory}: {holder} is writing here; wait for it or choose another directory"
             ) from None
-        os.ftruncate(fd, 0)
-        os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+        if in_directory:
+            os.ftruncate(fd, 0)
+            os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
         yield
     finally:
         os.close(fd)

@@ -63,20 +63,73 @@ class ObjectInfo:
 
     @classmethod
     def from_dict(cls, d: dict[str, Any], path: Path) -> ObjectInfo:
+        if not isinstance(d, dict):
+            raise DataError(path, f"malformed object entry (expected a mapping, got {type(d).__name__})")
         try:
             obj = cls(**{k: d[k] for k in cls.__dataclass_fields__ if k in d})
         except TypeError as e:
             raise DataError(path, f"malformed object entry ({e})") from None
-        if not isinstance(obj.id, int) or obj.id < 1:
+        if isinstance(obj.id, bool) or not isinstance(obj.id, int) or obj.id < 1:
             raise DataError(path, f"object id must be an integer >= 1, got {obj.id!r}")
-        box = np.asarray(obj.aabb, dtype=float)
-        if box.shape != (2, 3) or np.any(box[0] > box[1]):
-            raise DataError(path, f"object {obj.id}: aabb must be [[min xyz],[max xyz]] with min <= max")
+        box = _finite_array(obj.aabb, (2, 3))
+        if box is None or np.any(box[0] > box[1]):
+            raise DataError(path, f"object {obj.id}: aabb must be [[min xyz],[max xyz]] of finite numbers, min <= max")
+        if _finite_array(obj.transform, (4, 4)) is None:
+            raise DataError(path, f"object {obj.id}: transform must be a 4x4 matrix of finite numbers")
         return obj
 
     @property
     def aabb_array(self) -> np.ndarray:
         return np.asarray(self.aabb, dtype=np.float64)
+
+
+def _finite_array(value: Any, shape: tuple[int, ...]) -> np.ndarray | None:
+    """``value`` as a float array of ``shape`` with finite entries, or None."""
+    try:
+        a = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        return None
+    return a if a.shape == shape and np.all(np.isfinite(a)) else None
+
+
+def check_scene_info(info: Any, path: Path) -> dict[str, Any]:
+    """``scene.json``'s content, checked where readers rely on it: a mapping whose ``splits`` (if
+    given) maps split names to frame counts and whose ``intrinsics`` (if given) hold positive integer
+    ``width``/``height`` and a finite 3x3 ``K``. DataError naming the file otherwise."""
+    if not isinstance(info, dict):
+        raise DataError(path, f"expected a JSON object, got {type(info).__name__}")
+    splits = info.get("splits")
+    if splits is not None and not (
+        isinstance(splits, dict)
+        and all(isinstance(n, int) and not isinstance(n, bool) and n >= 0 for n in splits.values())
+    ):
+        raise DataError(path, "'splits' must map each split name to its number of frames")
+    intr = info.get("intrinsics")
+    if intr is not None:
+        size_ok = isinstance(intr, dict) and all(
+            isinstance(intr.get(k), int) and not isinstance(intr.get(k), bool) and intr[k] > 0
+            for k in ("width", "height")
+        )
+        if not size_ok or ("K" in intr and _finite_array(intr["K"], (3, 3)) is None):
+            raise DataError(path, "'intrinsics' must hold positive integers 'width' and 'height' and a finite 3x3 'K'")
+    layout = {  # the generator's layout, as the previews draw it: each entry's fields and their shapes
+        "floors": {"z": ()},
+        "rooms": {"rect": (4,), "floor": (), "name": None, "kind": None},
+    }
+    for key, fields in layout.items():
+        entries = info.get(key)
+        if entries is None:
+            continue
+        if not isinstance(entries, list) or not all(
+            isinstance(e, dict) and all(_field_ok(e.get(f), shape) for f, shape in fields.items()) for e in entries
+        ):
+            raise DataError(path, f"'{key}' must be a list of entries with {', '.join(fields)}")
+    return info
+
+
+def _field_ok(value: Any, shape: tuple[int, ...] | None) -> bool:
+    """A text field (``shape`` None) or a finite number / array of ``shape``."""
+    return isinstance(value, str) if shape is None else _finite_array(value, shape) is not None
 
 
 class Scene:
@@ -86,7 +139,8 @@ class Scene:
         self.root = Path(root)
         if not self.root.is_dir():
             raise DataError(self.root, "scene directory not found")
-        self.info: dict[str, Any] = io.read_json(self.root / "scene.json")
+        info_path = self.root / "scene.json"
+        self.info: dict[str, Any] = check_scene_info(io.read_json(info_path), info_path)
         objects_path = self.root / "objects.json"
         raw = io.read_json(objects_path) if objects_path.exists() else []
         if not isinstance(raw, list):
@@ -140,8 +194,18 @@ class Scene:
             raise DataError(where / "intrinsic" / "intrinsic_color.txt", "intrinsics differ from scene.json's")
 
     def displacements(self) -> list[dict[str, Any]]:
+        """The moved objects of ``query_displaced`` (each names an object of ``objects.json``)."""
         p = self.root / "query_displaced" / "displacements.json"
-        return io.read_json(p) if p.exists() else []
+        moved = io.read_json(p) if p.exists() else []
+        if not isinstance(moved, list) or not all(
+            isinstance(d, dict)
+            and isinstance(d.get("id"), int)
+            and d["id"] in self.objects
+            and _finite_array(d.get("aabb_after"), (2, 3)) is not None
+            for d in moved
+        ):
+            raise DataError(p, "expected a list of moved objects, each with an object 'id' and its 'aabb_after'")
+        return moved
 
 
 def read_split(split_dir: Path, split: str | None = None) -> SceneSequence:

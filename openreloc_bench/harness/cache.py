@@ -2,8 +2,8 @@
 
 Layout: ``RESULTS/maps/<method>/<config hash>/<scene>/`` holds only what the method wrote (so its
 size is the method's map size); ``<scene>.done.json`` next to it is written last and records the
-scene spec hash, mapping time and map size. A map whose marker is missing or names another spec
-hash is rebuilt from scratch.
+scene spec hash, mapping time and map size. A map whose marker is missing, damaged or names another
+spec hash, or whose files no longer match its manifest, is rebuilt from scratch.
 """
 
 from __future__ import annotations
@@ -17,7 +17,8 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
-from openreloc_bench.data import io
+from openreloc_bench.data import io, mapfile
+from openreloc_bench.errors import DataError
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 
@@ -57,12 +58,18 @@ def map_marker(map_dir: Path) -> Path:
 
 
 def read_map_record(map_dir: Path, spec_hash: str) -> dict[str, Any] | None:
-    """The completion record of a cached map, or None if it is absent, stale or from another spec."""
+    """The completion record of a cached map, or None if it is absent, stale, from another spec, or if
+    the map's own manifest (where it has one) no longer matches its files."""
     marker = map_marker(map_dir)
     if not marker.is_file() or not map_dir.is_dir():
         return None
-    rec = io.read_json(marker)
-    return rec if rec.get("spec_hash") == spec_hash else None
+    try:
+        rec = io.read_json(marker)
+    except DataError:  # a damaged marker: the map is rebuilt
+        return None
+    if (map_dir / mapfile.MANIFEST).exists() and not mapfile.is_intact(map_dir):
+        return None  # a damaged map (truncated, edited): rebuilt, never loaded by every query job to fail
+    return rec if isinstance(rec, dict) and rec.get("spec_hash") == spec_hash else None
 
 
 def build_map_cached(method: Any, mapping: Any, map_dir: Path, spec_hash: str, extra: dict[str, Any]) -> dict[str, Any]:

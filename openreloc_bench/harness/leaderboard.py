@@ -16,10 +16,11 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from openreloc_bench.data import io  # noqa: E402
+from openreloc_bench.data import io, paths  # noqa: E402
 from openreloc_bench.errors import DataError  # noqa: E402
 from openreloc_bench.harness.metrics import cumulative_curve  # noqa: E402
-from openreloc_bench.harness.tables import build_tables, paper_table, pool_seeds  # noqa: E402
+from openreloc_bench.harness.score import QUERY_COLUMNS  # noqa: E402
+from openreloc_bench.harness.tables import SCENE_KEYS, build_tables, paper_table, pool_seeds, read_query_csv  # noqa: E402
 
 BOARD_COLUMNS = {
     "method": "Method", "track": "Track", "split": "Split", "n_scenes": "Scenes", "n_seeds": "Seeds", "n_queries": "Queries",
@@ -42,6 +43,10 @@ FORMATS = {
 }
 
 
+BOARD_INPUT_COLUMNS = (*SCENE_KEYS, *QUERY_COLUMNS, "map_hash", "config_hash", "spec_hash", "git_commit")
+"""What the board reads of each results directory's ``tables/queries.csv``."""
+
+
 def load_queries(results: list[Path]) -> pd.DataFrame:
     """Concatenated per-query tables of the given results directories."""
     frames = []
@@ -49,9 +54,8 @@ def load_queries(results: list[Path]) -> pd.DataFrame:
         path = r / "tables" / "queries.csv"
         if not path.is_file():
             raise DataError(r, "no tables/queries.csv (run 'openreloc-bench eval' or 'score' into it first)")
-        frames.append(pd.read_csv(path, dtype={"reason": str}))
+        frames.append(read_query_csv(path, BOARD_INPUT_COLUMNS))
     q = pd.concat(frames, ignore_index=True)
-    q["reason"] = q["reason"].fillna("")
     return q.drop_duplicates(["method", "track", "scene", "split", "query"], keep="last")
 
 
@@ -209,8 +213,10 @@ def plot_topdown(q: pd.DataFrame, scene: str, path: Path) -> None:
 
 
 def write_leaderboard(results: list[Path], out: Path) -> list[Path]:
-    """Render everything into ``out``; returns the files written."""
+    """Render everything into ``out`` (never inside or around a results directory); returns the files written."""
     q = pool_seeds(load_queries(results))
+    for r in results:
+        paths.check_output(out, [r], "--out")
     scenes, suite = build_tables(q, load_maps(results))
     b = board(suite)
     out.mkdir(parents=True, exist_ok=True)

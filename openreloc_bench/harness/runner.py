@@ -39,7 +39,8 @@ from openreloc_bench.data.types import SceneSequence
 from openreloc_bench.errors import ConfigError, DataError
 from openreloc_bench.harness import cache
 from openreloc_bench.harness.executors import exit_with, make_executor, mp_context
-from openreloc_bench.harness.score import Outcome, score_split
+from openreloc_bench.harness.score import QUERY_COLUMNS, Outcome, score_split
+from openreloc_bench.harness.tables import read_query_csv
 from openreloc_bench.methods import (
     TRACKS,
     Failure,
@@ -53,8 +54,12 @@ from openreloc_bench.methods import (
 
 log = logging.getLogger(__name__)
 
+MARKER_KEYS = ("git_commit", "spec_hash", "config_hash", "split", "scene", "track", "method")
+"""What every finished job's marker records (the provenance columns of its per-query rows)."""
 RESUME_KEYS = ("config_hash", "map_hash", "spec_hash", "track", "split")
 """What a finished job's marker must agree on with the job asked for, for ``--resume`` to reuse it."""
+MAP_RECORD_KEYS = ("map_bytes", "mapping_time_s")
+"""The numbers every finished map's record holds (its size and build time in the tables)."""
 
 
 @dataclass
@@ -116,8 +121,8 @@ def import_plugins(modules: list[str]) -> None:
     for name in modules:
         try:
             importlib.import_module(name)
-        except ImportError as e:
-            raise ConfigError(f"cannot import plugin module '{name}' ({e})") from None
+        except Exception as e:  # noqa: BLE001 -- the user's module: missing, or failing as it runs
+            raise ConfigError(f"cannot import plugin module '{name}' ({type(e).__name__}: {e})") from None
 
 
 # --------------------------------------------------------------------------------------------
@@ -423,17 +428,18 @@ def plan(cfg: EvalConfig) -> tuple[list[MapJob], list[QueryJob]]:
                 if not (scene.root / split / "instance").is_dir():
                     raise DataError(scene.root / split, "no instance masks: use --track predicted")
         scenes[name] = scene
-    for derived in ("maps", "runs", "tables"):  # what the run creates, replaces or deletes
-        paths.check_output(cfg.out / derived, [s.root for s in scenes.values()], "results folder")
+    # the results folder (what the run creates, replaces, cleans of stray temps) holds no scene, nor is in one
+    paths.check_output(cfg.out, [s.root for s in scenes.values()], "results folder")
     map_jobs, query_jobs = [], []
-    for run, method in _seeded_runs(cfg.runs, cfg.seeds):
+    for run, method in seeded_runs(cfg.runs, cfg.seeds):
         mcfg = method_config(method)
         chash = cache.config_hash(mcfg)
         masks = map_track(method, cfg.track)
         map_hash = cache.config_hash({**map_config(method), "masks": masks})
         for name, scene in scenes.items():
             spec = scene.spec_hash
-            map_dir = cfg.out / "maps" / run.method / map_hash / name
+            # rebuilt (removed first) when stale: confined to the cache, whatever a plugin names its method
+            map_dir = paths.confined(cfg.out / "maps" / run.method / map_hash / name, cfg.out / "maps", "map cache")
             prov = {
                 "method": run.label,
                 "variant": run.variant or run.label,
@@ -448,7 +454,9 @@ def plan(cfg: EvalConfig) -> tuple[list[MapJob], list[QueryJob]]:
             }
             map_jobs.append(MapJob(run, scene.root, map_dir, spec, masks, cfg.map_timeout_s, prov, cfg.plugins))
             for split in cfg.splits:
-                out_dir = cfg.out / "runs" / run.label / cfg.track / name
+                out_dir = paths.confined(
+                    cfg.out / "runs" / run.label / cfg.track / name, cfg.out / "runs", "run folder"
+                )
                 query_jobs.append(
                     QueryJob(
                         run,
@@ -473,7 +481,7 @@ def _create(run: MethodRun) -> Relocalizer:
         raise ConfigError(f"method '{run.label}': invalid config ({e})") from None
 
 
-def _seeded_runs(runs: list[MethodRun], seeds: list[int]) -> list[tuple[MethodRun, Relocalizer]]:
+def seeded_runs(runs: list[MethodRun], seeds: list[int]) -> list[tuple[MethodRun, Relocalizer]]:
     """Every run with its method instance, repeated once per seed where the method has a ``seed`` setting."""
     if len(set(seeds)) != len(seeds):
         raise ConfigError(f"seeds repeat: {seeds}")
@@ -506,9 +514,12 @@ def finished(job: QueryJob) -> bool:
     """Whether ``job``'s marker exists and records the config, map, scene spec, track and split asked for."""
     if not job.marker.is_file():
         return False
-    done = io.read_json(job.marker)
+    try:
+        done = io.read_json(job.marker)
+    except DataError:  # a damaged marker: the job is recomputed
+        return False
     want = {**job.provenance, "track": job.track, "split": job.split}
-    return all(done.get(k) == want[k] for k in RESUME_KEYS)
+    return isinstance(done, dict) and all(done.get(k) == want[k] for k in RESUME_KEYS)
 
 
 def _evaluate(cfg: EvalConfig, map_jobs: list[MapJob], query_jobs: list[QueryJob]) -> EvalReport:
@@ -555,10 +566,12 @@ def load_run_queries(out: Path) -> pd.DataFrame:
     frames = []
     for marker in sorted((out / "runs").glob("*/*/*/*.done.json")):
         rec = io.read_json(marker)
-        df = pd.read_csv(marker.with_name(f"{rec['split']}.queries.csv"), dtype={"reason": str})
-        df["reason"] = df["reason"].fillna("")
+        missing = [k for k in MARKER_KEYS if not isinstance(rec, dict) or k not in rec]
+        if missing:
+            raise DataError(marker, f"no '{missing[0]}': not a finished job's marker (remove it to recompute the job)")
+        df = read_query_csv(marker.with_name(f"{rec['split']}.queries.csv"), QUERY_COLUMNS)
         df.insert(0, "map_hash", rec.get("map_hash", rec["config_hash"]))  # older runs keyed maps by the full config
-        for key in ("git_commit", "spec_hash", "config_hash", "split", "scene", "track", "method"):
+        for key in MARKER_KEYS:
             df.insert(0, key, rec[key])
         df["variant"] = rec.get("variant", rec["method"])  # runs from before seeds: their own variant
         df["seed"] = pd.array([rec.get("seed")] * len(df), dtype="Int64")
@@ -568,14 +581,17 @@ def load_run_queries(out: Path) -> pd.DataFrame:
 
 def load_map_records(out: Path) -> pd.DataFrame:
     """Mapping time and map size of every cached map, one row per (map hash, scene)."""
-    rows = [
-        {
-            "map_hash": p.parent.name,
-            "scene": p.name[: -len(".done.json")],
-            "map_mb": r["map_bytes"] / 1e6,
-            "mapping_time_s": r["mapping_time_s"],
-        }
-        for p in sorted((out / "maps").glob("*/*/*.done.json"))
-        for r in [io.read_json(p)]
-    ]
+    rows = []
+    for p in sorted((out / "maps").glob("*/*/*.done.json")):
+        r = io.read_json(p)
+        if not isinstance(r, dict) or not all(isinstance(r.get(k), (int, float)) for k in MAP_RECORD_KEYS):
+            raise DataError(p, "not a finished map's record (remove it: the map is rebuilt by the next eval)")
+        rows.append(
+            {
+                "map_hash": p.parent.name,
+                "scene": p.name[: -len(".done.json")],
+                "map_mb": r["map_bytes"] / 1e6,
+                "mapping_time_s": r["mapping_time_s"],
+            }
+        )
     return pd.DataFrame(rows, columns=["map_hash", "scene", "map_mb", "mapping_time_s"])

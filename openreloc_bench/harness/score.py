@@ -85,6 +85,8 @@ def submission_outcomes(
     """
     per_split = submission / scene / f"{seq.split}.txt"
     per_scene = submission / f"{scene}.txt"
+    if per_split.is_file() and per_scene.is_file():
+        raise DataError(submission, f"holds both {per_scene.name} and {scene}/{per_split.name}: keep one layout")
     if per_split.is_file():
         path, found = per_split, outcomes_from_file(per_split)
     elif per_scene.is_file():
@@ -110,12 +112,23 @@ def submission_outcomes(
 
 
 def submission_scenes(submission: Path, data: Path) -> list[str]:
-    """Scenes a submission covers: ``<scene>.txt`` files and ``<scene>/`` folders that name scenes under ``data``."""
-    names = {p.stem for p in submission.glob("*.txt")} | {p.name for p in submission.iterdir() if p.is_dir()}
-    found = sorted(n for n in names if (data / n / "scene.json").is_file())
-    if not found:
+    """Scenes a submission covers: its ``<scene>.txt`` files and ``<scene>/`` folders, each of which must
+    name a scene under ``data`` (a mistyped name would otherwise drop that scene's estimates unseen)."""
+    if not submission.is_dir():
+        raise DataError(submission, "submission directory not found")
+    entries = [p for p in submission.iterdir() if not p.name.startswith(".")]
+    names = {p.stem: p.name for p in entries if p.is_file() and p.suffix == ".txt"}
+    names.update({p.name: f"{p.name}/" for p in entries if p.is_dir()})
+    if not names:
         raise DataError(submission, f"no '<scene>.txt' or '<scene>/<split>.txt' naming a scene under {data}")
-    return found
+    unknown = sorted(f for n, f in names.items() if not (data / n / "scene.json").is_file())
+    if unknown:
+        raise DataError(
+            submission / unknown[0],
+            f"names no scene under {data} (a scene directory with scene.json); rename or remove it, or pass "
+            "--suite to score the suite's scenes only",
+        )
+    return sorted(names)
 
 
 def score_submission(

@@ -8,8 +8,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from openreloc_bench.data import io
-from openreloc_bench.data.scene import SceneWriter
+from openreloc_bench.data import io, paths
+from openreloc_bench.data.scene import SceneWriter, check_scene_info
 from openreloc_bench.errors import ConfigError
 
 
@@ -35,19 +35,27 @@ def ensure_suite_scenes(suite_path: Path, data: Path) -> list[str]:
     specs = suite_specs(suite_path)
     from generators.spec import spec_hash
 
-    for spec in specs:
-        state = scene_state(data / spec.name, spec_hash(spec))
-        if state == "complete":
-            continue
-        if state == "other spec":
-            raise ConfigError(
-                f"{data / spec.name} was generated from another spec than {suite_path} asks for; "
-                "move it away or use another --data"
-            )
+    def todo() -> list[tuple[Any, str]]:
+        out = []
+        for spec in specs:
+            paths.check_output(data / spec.name, [suite_path], "scene directory")
+            state = scene_state(data / spec.name, spec_hash(spec))
+            if state == "other spec":
+                raise ConfigError(
+                    f"{data / spec.name} was generated from another spec than {suite_path} asks for; "
+                    "move it away or use another --data"
+                )
+            if state != "complete":
+                out.append((spec, state))
+        return out
+
+    if todo():
         from generators.generate import generate_scene
 
-        print(f"generating scene {spec.name} ({state}) ...", flush=True)
-        generate_scene(spec, data, resume=state == "partial")
+        with paths.directory_lock(data, "openreloc-bench generate", in_directory=False):
+            for spec, state in todo():  # again under the lock: another process may have generated meanwhile
+                print(f"generating scene {spec.name} ({state}) ...", flush=True)
+                generate_scene(spec, data, resume=state == "partial")
     return [s.name for s in specs]
 
 
@@ -56,10 +64,10 @@ def scene_state(root: Path, expected_hash: str) -> str:
     info_path = root / "scene.json"
     if not info_path.is_file():
         return "missing" if not root.exists() or not any(root.iterdir()) else "other spec"
-    info = io.read_json(info_path)
+    info = check_scene_info(io.read_json(info_path), info_path)
     if info.get("spec_hash") != expected_hash:
         return "other spec"
-    counts = info.get("splits", {})
+    counts = info.get("splits") or {}
     writer = SceneWriter(root)
     done = all(writer.has_frame(s, i) for s, n in counts.items() for i in range(n))
     return "complete" if counts and done else "partial"

@@ -27,6 +27,8 @@ import networkx as nx
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from openreloc_bench.config import check_ranges
+
 
 @dataclass
 class AssociationConfig:
@@ -47,6 +49,9 @@ class AssociationConfig:
     dataset instance id (with oracle masks, landmark ids are instance ids), skipping encoding, uniqueness,
     language and the scene graph. It measures the geometric stages (verification pose, coarse prior,
     refinement) independently of the encoder. Needs the oracle-mask track; results made with it are not OpenReLoc's."""
+
+    def __post_init__(self) -> None:
+        check_ranges(self, at_least_one=("top_k",), non_negative=("uniqueness_ratio", "min_uniqueness", "hops"))
 
 
 @dataclass

@@ -24,6 +24,7 @@ import numpy as np
 import open3d as o3d
 
 from openreloc_bench import config as cfg_mod
+from openreloc_bench.config import check_ranges
 from openreloc_bench.data.scene import Scene
 from openreloc_bench.data.types import SceneSequence
 from openreloc_bench.errors import ConfigError
@@ -59,6 +60,9 @@ class MappingConfig:
     descriptors: DescriptorConfig = field(default_factory=DescriptorConfig)
     filtering: FilterConfig = field(default_factory=FilterConfig)
     graph: GraphConfig = field(default_factory=GraphConfig)
+
+    def __post_init__(self) -> None:
+        check_ranges(self, positive=("landmark_voxel",), at_least_one=("max_landmark_points",), non_negative=("seed",))
 
 
 class _Timer:

@@ -24,6 +24,8 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 from scipy.spatial import cKDTree
 
+from openreloc_bench.config import check_ranges
+
 
 @dataclass
 class ConsistencyConfig:
@@ -53,10 +55,17 @@ class ConsistencyConfig:
     image)."""
     tie_share: float = 0.1
     """Hypotheses scoring at least (1 - tie_share) of the best score tie; the lowest ICP loss among them
-    wins. The grid cannot rank poses a few decimetres apart: on the smoke scene it preferred 0.2-1 m
-    errors over the 0.05-0.3 m poses the loss picks. Measured R@50, without / 0.1 / 0.2: smoke (8
-    queries) 37.5 / 50.0 / 62.5; 90 gen2 multi-room queries 74.4 / 74.4 / 72.2. With ``splat``, 0.2 on
-    the validation suite (seeds 0-2): 76.1 / 66.1 against 0.1's 76.5 / 66.4."""
+    wins. The grid cannot rank poses a few decimetres apart (it may prefer a pose a metre off to the one
+    the loss picks a decimetre from the truth); the loss can. 0 = the best-explained pose alone."""
+
+    def __post_init__(self) -> None:
+        check_ranges(
+            self,
+            positive=("min_depth",),
+            at_least_one=("stride", "points_per_landmark", "candidates", "max_splat_cells"),
+            non_negative=("splat",),
+            share=("off_candidate_weight", "tie_share"),
+        )
 
 
 class LabelRenderer:

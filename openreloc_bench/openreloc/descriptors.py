@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 from tqdm import tqdm
 
+from openreloc_bench.config import check_ranges
 from openreloc_bench.data.types import SceneSequence
 from openreloc_bench.openreloc.mapping import read_color
 from openreloc_bench.openreloc.reference_frames import Sightings
@@ -31,6 +32,9 @@ class DescriptorConfig:
     """Views whose box is narrower or shorter than this many pixels are used only if nothing else is."""
     batch_size: int = 64
     """Crops per encoder call."""
+
+    def __post_init__(self) -> None:
+        check_ranges(self, at_least_one=("top_k", "batch_size"), non_negative=("padding", "min_crop_px"))
 
 
 def pad_box(box: np.ndarray, padding: float, width: int, height: int) -> tuple[int, int, int, int]:

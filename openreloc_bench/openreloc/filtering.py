@@ -23,6 +23,7 @@ from typing import Literal
 import numpy as np
 import scipy.sparse as sp
 
+from openreloc_bench.config import check_ranges
 from openreloc_bench.openreloc.map import ReferenceFrame
 
 
@@ -48,6 +49,9 @@ class FilterConfig:
     the generator) or longer; the longest thin furniture of the asset library, runner rugs, reaches 2.44 m."""
     plane_max_thickness: float = 0.15
     """Metres: a slab's thinnest principal extent (robust 2-98 percentile range) is at most this."""
+
+    def __post_init__(self) -> None:
+        check_ranges(self, non_negative=("plane_min_span", "plane_max_thickness"), share=("max_frequency",))
 
 
 def reference_frequency(rfs: list[ReferenceFrame], ids: list[int], scope: str = "local") -> dict[int, float]:

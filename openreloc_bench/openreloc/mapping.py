@@ -36,6 +36,7 @@ from scipy.spatial import cKDTree
 from tqdm import tqdm
 
 from openreloc_bench import geometry
+from openreloc_bench.config import check_ranges
 from openreloc_bench.data import io
 from openreloc_bench.data.scene import ObjectInfo
 from openreloc_bench.data.types import SceneSequence
@@ -68,6 +69,17 @@ class FusionConfig:
     scaled to match): at 320 px a pixel spans ~2 cm at 4 m, the TSDF voxel, so fusing every pixel of
     a 640x480 map costs 4x the time for no extra surface. 0 fuses full resolution."""
 
+    def __post_init__(self) -> None:
+        check_ranges(
+            self,
+            positive=("voxel_size", "sdf_trunc_voxels", "depth_max"),
+            at_least_one=("block_resolution", "block_count"),
+            non_negative=("min_weight", "max_fusion_width"),
+            share=("min_valid_depth",),
+        )
+        if 0 < self.max_fusion_width < 16:  # a stride that leaves a few depth pixels to fuse
+            raise ValueError(f"'max_fusion_width' must be 0 (full resolution) or >= 16, got {self.max_fusion_width}")
+
 
 @dataclass
 class ObservationConfig:
@@ -82,6 +94,9 @@ class ObservationConfig:
     points of cubes that intersect its view frustum up to its farthest depth. Same result as projecting
     everything; in a multi-room scene a frame sees a small share of the cubes. 0 disables culling."""
 
+    def __post_init__(self) -> None:
+        check_ranges(self, non_negative=("depth_tolerance", "depth_tolerance_rel", "cell_size"))
+
 
 @dataclass
 class VotingConfig:
@@ -91,6 +106,9 @@ class VotingConfig:
     """A point needs at least this many frames seeing it under the winning instance id."""
     min_share: float = 0.5
     """...and the winning id must hold at least this share of the point's views (background included)."""
+
+    def __post_init__(self) -> None:
+        check_ranges(self, at_least_one=("min_votes",), share=("min_share",))
 
 
 @dataclass
@@ -126,6 +144,24 @@ class ClusteringConfig:
     nested_share: float = 0.8
     """A cluster with more than this share of its points inside a larger cluster is dropped."""
 
+    def __post_init__(self) -> None:
+        check_ranges(
+            self,
+            at_least_one=("min_masks",),
+            non_negative=("min_mask_points", "min_observers", "split_distance"),
+            share=(
+                "visible_share",
+                "containment",
+                "undersegment_share",
+                "consensus",
+                "point_support",
+                "min_part_share",
+                "nested_share",
+            ),
+        )
+        if any(not 0 <= p <= 100 for p in self.observer_percentiles):
+            raise ValueError(f"'observer_percentiles' must be percentiles in [0, 100], got {self.observer_percentiles}")
+
 
 @dataclass
 class InstanceConfig:
@@ -138,6 +174,9 @@ class InstanceConfig:
     box in ``objects.json`` (see :func:`box_point_labels`); ~1.5 fusion voxels absorbs surface noise."""
     voting: VotingConfig = field(default_factory=VotingConfig)
     clustering: ClusteringConfig = field(default_factory=ClusteringConfig)
+
+    def __post_init__(self) -> None:
+        check_ranges(self, non_negative=("min_points", "gt_box_margin"))
 
 
 @dataclass

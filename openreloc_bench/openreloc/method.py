@@ -34,6 +34,7 @@ from threadpoolctl import ThreadpoolController
 
 from openreloc_bench import config as cfglib
 from openreloc_bench import geometry
+from openreloc_bench.config import check_ranges
 from openreloc_bench.data.types import SceneSequence
 from openreloc_bench.errors import DataError
 from openreloc_bench.methods import Failure, PoseEstimate, QueryFrame
@@ -130,6 +131,14 @@ class OpenReLocConfig:
     normally a query object whose best landmark is an invalid one is dropped."""
     seed: int = 0
     """Seed of the refinement's point/pixel subsampling."""
+
+    def __post_init__(self) -> None:
+        check_ranges(
+            self,
+            at_least_one=("max_objects",),
+            non_negative=("min_objects", "min_matches", "seed"),
+            share=("min_mask_frac",),
+        )
 
 
 class OpenReLoc:

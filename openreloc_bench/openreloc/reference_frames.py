@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from openreloc_bench.config import check_ranges
 from openreloc_bench.openreloc.map import ReferenceFrame
 from openreloc_bench.openreloc.mapping import FrameObservation
 
@@ -30,6 +31,9 @@ class ReferenceFrameConfig:
     """A landmark counts as seen in a frame (for appearing, boxes and n_views) above this visibility."""
     min_points: int = 5
     """...and with at least this many seen points (one stray point is not a sighting)."""
+
+    def __post_init__(self) -> None:
+        check_ranges(self, positive=("gain",), non_negative=("min_points",), share=("min_visibility",))
 
 
 @dataclass

@@ -43,6 +43,7 @@ import torch
 from scipy.spatial.transform import Rotation
 
 from openreloc_bench import geometry
+from openreloc_bench.config import check_ranges
 
 _BIG = 1e6  # pixel coordinate for padded (absent) points: never the nearest of anything real
 _SLICE_FLOATS = 1 << 18  # 1 MB of float32 scores per slice of the nearest-point search (fits in cache)
@@ -125,8 +126,35 @@ class RefineConfig:
     score slightly lower, and a restart that pushed one more object past ``outlier_factor`` would otherwise
     win by leaving it out of its mean."""
     restart_iterations: int = 60
-    """Step cap of each restart's refinement: they start a few degrees from a settled pose (uncapped they
-    took 133 steps on average, 0.25 s per query; capped, 0.12 s)."""
+    """Step cap of each restart's refinement: they start a few degrees from a settled pose, so a short run
+    settles them (uncapped, the restarts take about twice as long)."""
+
+    def __post_init__(self) -> None:
+        check_ranges(
+            self,
+            positive=("lr_rotation", "lr_translation", "huber_delta", "outlier_factor", "min_depth"),
+            at_least_one=(
+                "plateau_patience",
+                "max_points",
+                "max_mask_pixels",
+                "correspondence_every",
+                "anneal_steps",
+            ),
+            non_negative=(
+                "max_iterations",
+                "restart_iterations",
+                "plateau_threshold",
+                "lr_reductions",
+                "stall_patience",
+                "stall_min_iterations",
+                "outlier_warmup",
+                "outlier_min_loss",
+                "max_side",
+                "huber_delta_start",
+                "restart_degrees",
+            ),
+            share=("restart_margin",),
+        )
 
 
 @dataclass

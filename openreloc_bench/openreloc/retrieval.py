@@ -30,6 +30,7 @@ import cv2
 import numpy as np
 
 from openreloc_bench import geometry
+from openreloc_bench.config import check_ranges
 from openreloc_bench.openreloc.map import ReferenceFrame
 
 Ranking = Literal["diou", "visibility"]
@@ -52,6 +53,14 @@ class CoarseConfig:
     pnp_iterations: int = 2
     """Re-solves pairing each mask centroid with the centroid of its landmark's in-image points at the
     previous PnP pose (border-truncated objects); 0 = landmark centres only."""
+
+    def __post_init__(self) -> None:
+        check_ranges(
+            self,
+            positive=("pnp_threshold",),
+            at_least_one=("top_frames",),
+            non_negative=("pnp_min_objects", "pnp_iterations"),
+        )
 
 
 def diou_distance(box_a: np.ndarray, box_b: np.ndarray) -> np.ndarray:

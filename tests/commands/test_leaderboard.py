@@ -44,14 +44,17 @@ def results(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     )
     seq = Scene(data / "s1").sequence("query")
     write_results(root / "sub" / "s1.txt", {n: perturb(T, n, 0.4, 8.0) for n, T in zip(seq.names, seq.poses)})
-    assert main(["score", str(root / "sub"), "--data", str(data), "--method", "outside"]) == 0
+    assert (
+        main(["score", str(root / "sub"), "--data", str(data), "--method", "outside", "--out", str(root / "scores")])
+        == 0
+    )
     return root, data
 
 
 def test_leaderboard_merges_eval_and_score_results(results: tuple[Path, Path], capsys) -> None:
     root, _ = results
     out = root / "board"
-    assert main(["leaderboard", str(root / "res"), str(root / "sub" / "scores"), "--out", str(out)]) == 0
+    assert main(["leaderboard", str(root / "res"), str(root / "scores"), "--out", str(out)]) == 0
     assert "| test-oracle |" in capsys.readouterr().out
     board = pd.read_csv(out / "leaderboard.csv")
     assert set(board["method"]) == {"test-oracle", "nearest-frame", "outside"}

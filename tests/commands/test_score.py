@@ -31,7 +31,7 @@ def estimates(data: Path, split: str, noise_m: float) -> dict[str, np.ndarray]:
 
 @pytest.mark.parametrize("layout", ["per-scene", "per-split"])
 def test_scores_both_layouts_and_counts_missing_queries_as_failures(
-    data: Path, tmp_path: Path, layout: str, capsys
+    data: Path, tmp_path: Path, layout: str, capsys, monkeypatch
 ) -> None:
     sub = tmp_path / "mysub"
     est = {**estimates(data, "query", 0.3), **estimates(data, "query_light1", 0.1)}
@@ -41,9 +41,10 @@ def test_scores_both_layouts_and_counts_missing_queries_as_failures(
     else:
         for split in ("query", "query_light1"):
             write_results(sub / "s1" / f"{split}.txt", {n: T for n, T in est.items() if n.startswith(split + "/")})
+    monkeypatch.chdir(tmp_path)  # the tables go to ./mysub-scores, beside the submission, not into it
     assert main(["score", str(sub), "--data", str(data), "--splits", "query,query_light1"]) == 0
     assert "1 of 8 queries have no estimate" in capsys.readouterr().out
-    suite = pd.read_csv(sub / "scores" / "tables" / "suite.csv").set_index("split")
+    suite = pd.read_csv(tmp_path / "mysub-scores" / "tables" / "suite.csv").set_index("split")
     assert suite.loc["query", "recall_50cm"] == 75.0 and suite.loc["query", "recall_25cm"] == 0.0
     assert suite.loc["query", "mte_50cm_m"] == pytest.approx(0.3)
     assert suite.loc["query_light1", "recall_25cm"] == 100.0

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from openreloc_bench.data import mapfile
-from openreloc_bench.errors import DataError
+from openreloc_bench.errors import ConfigError, DataError
 
 FORMAT = ("test-map", 3)
 
@@ -69,3 +69,47 @@ def test_malformed_payloads_are_data_errors(tmp_path: Path) -> None:
         mapfile.load_npz(b"not a zip", tmp_path / "x.npz")
     with pytest.raises(DataError, match="x.json: not valid JSON"):
         mapfile.load_json(b"{", tmp_path / "x.json")
+
+
+def test_a_manifest_naming_a_file_elsewhere_is_refused(tmp_path: Path) -> None:
+    write(tmp_path / "set")
+    (tmp_path / "secret").write_text("x")
+    manifest = json.loads((tmp_path / "set" / mapfile.MANIFEST).read_text())
+    manifest["files"]["../secret"] = {"sha256": "0", "bytes": 1}
+    (tmp_path / "set" / mapfile.MANIFEST).write_text(json.dumps(manifest))
+    with pytest.raises(DataError, match="lists '../secret', which is not a file name"):
+        mapfile.read_file_set(tmp_path / "set", *FORMAT)
+
+
+def test_clearing_removes_exactly_a_previous_set(tmp_path: Path) -> None:
+    mapfile.clear_file_set(tmp_path / "new")  # missing: nothing to do
+    write(tmp_path / "old")
+    mapfile.clear_file_set(tmp_path / "old")
+    assert list((tmp_path / "old").iterdir()) == []
+
+
+@pytest.mark.parametrize(
+    "prepare, message",
+    [
+        (lambda d: (d / "notes.txt").write_text("mine"), "holds 'notes.txt' that no manifest.json there lists"),
+        (lambda d: (write(d), (d / "notes.txt").write_text("mine")), "holds 'notes.txt'"),
+        (lambda d: (write(d), (d / mapfile.MANIFEST).unlink()), "holds 'arrays.npz'"),  # an interrupted build
+    ],
+    ids=["a-user-folder", "a-set-with-foreign-files", "payload-without-manifest"],
+)
+def test_clearing_refuses_anything_but_a_set_and_removes_nothing(tmp_path: Path, prepare, message: str) -> None:
+    d = tmp_path / "d"
+    d.mkdir()
+    prepare(d)
+    before = sorted(p.name for p in d.iterdir())
+    with pytest.raises(ConfigError, match=message):
+        mapfile.clear_file_set(d)
+    assert sorted(p.name for p in d.iterdir()) == before
+
+
+def test_a_cache_can_tell_an_intact_set_of_any_format(tmp_path: Path) -> None:
+    write(tmp_path / "ok")
+    assert mapfile.is_intact(tmp_path / "ok")
+    write(tmp_path / "cut")
+    (tmp_path / "cut" / "arrays.npz").write_bytes(b"x")
+    assert not mapfile.is_intact(tmp_path / "cut") and not mapfile.is_intact(tmp_path / "none")

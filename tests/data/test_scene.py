@@ -131,3 +131,62 @@ def test_writer_rejects_non_rigid_pose_and_writes_nothing(tmp_path: Path):
     with pytest.raises(ValueError):
         w.write_frame("mapping", 0, np.zeros((4, 4, 3), np.uint8), None, None, np.diag([1, 1, 2, 1.0]))
     assert not w.has_frame("mapping", 0)
+
+
+@pytest.mark.parametrize(
+    "info, message",
+    [
+        ([1, 2], "expected a JSON object, got list"),
+        ({"splits": {"mapping": "many"}}, "'splits' must map each split name to its number of frames"),
+        ({"intrinsics": {"K": "x", "width": 32, "height": 24}}, "'intrinsics' must hold"),
+        ({"intrinsics": {"K": [[1, 2]], "width": 32, "height": 24}}, "'intrinsics' must hold"),
+        ({"intrinsics": {"width": "32", "height": 24}}, "'intrinsics' must hold"),
+    ],
+    ids=["a-list", "counts-not-numbers", "K-text", "K-wrong-shape", "width-text"],
+)
+def test_scene_json_is_checked_where_readers_rely_on_it(tiny_scene: Path, info, message: str) -> None:
+    (tiny_scene / "scene.json").write_text(json.dumps(info))
+    with pytest.raises(DataError, match=message) as e:
+        Scene(tiny_scene)
+    assert "scene.json" in str(e.value)
+
+
+@pytest.mark.parametrize(
+    "entry, message",
+    [
+        (5, "expected a mapping, got int"),
+        ({"id": 1, "category": "x", "aabb": "no"}, "aabb must be"),
+        ({"id": 1, "category": "x", "aabb": [[float("nan"), 0, 0], [1, 1, 1]]}, "aabb must be"),
+        ({"id": 1, "category": "x", "transform": [[1, 0], [0, 1]]}, "transform must be a 4x4"),
+        ({"id": True, "category": "x"}, "id must be an integer"),
+    ],
+)
+def test_object_entries_of_the_wrong_shape_are_data_errors(tiny_scene: Path, entry, message: str) -> None:
+    (tiny_scene / "objects.json").write_text(json.dumps([entry]))
+    with pytest.raises(DataError, match=message):
+        Scene(tiny_scene)
+
+
+@pytest.mark.parametrize(
+    "info, message",
+    [
+        (
+            {"rooms": [{"rect": "x", "floor": 0, "name": "a", "kind": "b"}]},
+            "'rooms' must be a list of entries with rect",
+        ),
+        ({"rooms": [{"rect": [0, 0, 1, 1], "name": "a", "kind": "b"}]}, "'rooms' must be a list"),
+        ({"floors": [{"z": None}]}, "'floors' must be a list of entries with z"),
+    ],
+)
+def test_the_layout_a_preview_draws_is_checked(tiny_scene: Path, info, message: str) -> None:
+    (tiny_scene / "scene.json").write_text(json.dumps(info))
+    with pytest.raises(DataError, match=message):
+        Scene(tiny_scene)
+
+
+def test_displacements_must_name_objects_of_the_scene(tiny_scene: Path) -> None:
+    path = tiny_scene / "query_displaced" / "displacements.json"
+    path.parent.mkdir()
+    path.write_text(json.dumps([{"id": 7, "aabb_after": [[0, 0, 0], [1, 1, 1]]}]))
+    with pytest.raises(DataError, match="displacements.json: expected a list of moved objects"):
+        Scene(tiny_scene).displacements()

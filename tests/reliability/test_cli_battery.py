@@ -7,71 +7,19 @@ Every case asserts one of two outcomes: a one-line error (exit 2, no traceback) 
 
 from __future__ import annotations
 
-import hashlib
 import json
 import shutil
-import sys
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
 
-sys.path.insert(0, str(Path(__file__).parents[1] / "harness"))  # the test-method plugin, importable by workers
-from harness_test_methods import make_scene  # noqa: E402
-
-from openreloc_bench.cli import main  # noqa: E402
-from openreloc_bench.data import paths  # noqa: E402
-from openreloc_bench.data.results import read_tum_trajectory  # noqa: E402
-
-PLUGIN = ["--plugin", "harness_test_methods"]
-
-
-def checksums(root: Path) -> dict[str, str]:
-    return {
-        str(p.relative_to(root)): hashlib.sha256(p.read_bytes()).hexdigest() for p in root.rglob("*") if p.is_file()
-    }
-
-
-@dataclass
-class World:
-    """A data folder with two tiny scenes, a nearest-frame map, and folders for the inputs a case writes."""
-
-    data: Path
-    map_dir: Path
-    inputs: Path
-    tmp: Path
-
-    @property
-    def scene(self) -> Path:
-        return self.data / "sA"
-
-
-@pytest.fixture
-def world(tmp_path: Path) -> World:
-    data = tmp_path / "data"
-    make_scene(data, "sA", splits=("query", "query_light1"), seed=1)
-    make_scene(data, "sB", splits=("query",), seed=2)
-    w = World(data, tmp_path / "map", tmp_path / "inputs", tmp_path)
-    w.inputs.mkdir()
-    assert main(["map", "--method", "nearest-frame", "--scene", str(w.scene), "--out", str(w.map_dir)]) == 0
-    return w
-
-
-def run(argv: list[str], capsys: pytest.CaptureFixture) -> tuple[int, str, str]:
-    capsys.readouterr()
-    code = main(argv)  # an uncaught exception here is a traceback for the user: the test fails
-    out, err = capsys.readouterr()
-    return code, out, err
-
-
-def one_line_error(code: int, err: str, command: str, match: str) -> None:
-    lines = [ln for ln in err.splitlines() if ln.startswith(f"openreloc-bench {command}: error:")]
-    assert code == 2, err
-    assert len(lines) == 1 and match in lines[0], err
-    assert "Traceback" not in err
+from openreloc_bench.data import paths
+from openreloc_bench.data.results import read_tum_trajectory
+from openreloc_bench.harness.leaderboard import BOARD_INPUT_COLUMNS
+from tests.reliability.conftest import PLUGIN, World, checksums, one_line_error, run
 
 
 def write_input(w: World, name: str, content: bytes) -> Path:
@@ -181,13 +129,178 @@ MISTAKES: dict[str, tuple[str, Callable[[World], list[str]], str]] = {
         lambda w: ["score", str(submission(w, "query/000000 nan 0 0 0 0 0 0\n")), "--data", str(w.data), "--out", str(w.tmp / "s")],
         "NaN or inf",
     ),
+    # ---- the general rules, applied to every command (numbers checked, paths confined, text decoded)
+    "generate: a NaN in the suite": (
+        "generate",
+        lambda w: ["generate", str(suite_file(w, "fov_y: .nan")), "--out", str(w.tmp / "gen")],
+        "'scenes[0].fov_y': expected a finite number, got nan",
+    ),
+    "generate: a key given twice": (
+        "generate",
+        lambda w: ["generate", str(suite_file(w, "seed: 4")), "--out", str(w.tmp / "gen")],
+        "found duplicate key 'seed'",
+    ),
+    "generate: a scene of another spec where it would write": (
+        "generate",
+        lambda w: ["generate", str(suite_file(w, name="sA")), "--out", str(w.data)],
+        "was generated from another spec",
+    ),
+    "generate: the suite file inside the scene folder it replaces": (
+        "generate",
+        lambda w: ["generate", str(suite_file(w, at="gen/s1/suite.yaml")), "--out", str(w.inputs / "gen")],
+        "overlaps the input",
+    ),
+    "generate: --scenes names nothing": (
+        "generate",
+        lambda w: ["generate", str(suite_file(w)), "--out", str(w.tmp / "gen"), "--scenes", ","],
+        "--scenes names no scene",
+    ),
+    "map: --out a folder of the user's": (
+        "map",
+        lambda w: ["map", "--method", "nearest-frame", "--scene", str(w.scene), "--out", str(w.inputs)],
+        "holds 'file.txt' that no manifest.json there lists",
+    ),
+    "map: a config whose key is a number": (
+        "map",
+        lambda w: ["map", "--method", "nearest-frame", "--scene", str(w.scene), "--out", str(w.tmp / "m"), "--config", str(write_input(w, "c.yaml", b"1: 2"))],
+        "key 1 is not a name",
+    ),
+    "map: a negative learning rate": (
+        "map",
+        lambda w: ["map", "--method", "openreloc", "--scene", str(w.scene), "--out", str(w.tmp / "m"), "--set", "refinement.lr_rotation=-1"],
+        "openreloc.refinement: 'lr_rotation' must be > 0, got -1.0",
+    ),
+    "map: an unknown encoder option": (
+        "map",
+        lambda w: ["map", "--method", "openreloc", "--scene", str(w.scene), "--out", str(w.tmp / "m"), "--set", "encoder_options.bogus=1"],
+        "encoder 'offline': got an unexpected keyword argument 'bogus'",
+    ),
+    "map: encoder weights that are not a path": (
+        "map",
+        lambda w: ["map", "--method", "openreloc", "--scene", str(w.scene), "--out", str(w.tmp / "m"), "--set", "encoder_options.weights=5"],
+        "option 'weights' must be a directory path, got 5",
+    ),
+    "localize: --diagnostics is --out": (
+        "localize",
+        lambda w: ["localize", "--method", "nearest-frame", "--map", str(w.map_dir), "--scene", str(w.scene), "--out", str(w.tmp / "p.txt"), "--diagnostics", str(w.tmp / "p.txt")],
+        "are the same file",
+    ),
+    "localize: scene.json is a list": (
+        "localize",
+        lambda w: ["localize", "--method", "nearest-frame", "--map", str(w.map_dir), "--scene", str(damaged(w, "scene.json", b"[1, 2]")), "--out", str(w.tmp / "p.txt")],
+        "scene.json: expected a JSON object, got list",
+    ),
+    "eval: --out the data folder (its clean-up would reach into the scenes)": (
+        "eval",
+        lambda w: ["eval", "--scenes", "sA", "--methods", "nearest-frame", "--data", str(w.data), "--out", str(w.data)],
+        "results folder",
+    ),
+    "eval: --splits mapping": ("eval", lambda w: eval_argv(w, "--splits", "mapping"), "'mapping' builds the maps"),
+    "eval: --splits names nothing": ("eval", lambda w: eval_argv(w, "--splits", ","), "--splits names nothing"),
+    "eval: a timeout beyond what the system can wait": (
+        "eval",
+        lambda w: eval_argv(w, "--timeout", "1e300"),
+        "--timeout must be a number of seconds in [0, 1e+07]",
+    ),
+    "eval: --method-config twice for one method": (
+        "eval",
+        lambda w: eval_argv(w, "--method-config", f"nearest-frame={write_input(w, 'a.yaml', b'thumb_size: 8')}", "--method-config", f"nearest-frame={write_input(w, 'b.yaml', b'thumb_size: 16')}"),
+        "names 'nearest-frame' twice",
+    ),
+    "eval: a seed beyond 64 bits": (
+        "eval",
+        lambda w: eval_argv(w, "--seeds", "99999999999999999999", *PLUGIN, methods="test-oracle"),
+        "--seeds: 99999999999999999999 is out of range",
+    ),
+    "score: both layouts for one scene": (
+        "score",
+        lambda w: ["score", str(submission(w, "query/000000 1 0 0 0 0 0 0\n", also="sA/query.txt")), "--data", str(w.data), "--out", str(w.tmp / "s")],
+        "keep one layout",
+    ),
+    "score: a file naming no scene": (
+        "score",
+        lambda w: ["score", str(submission(w, "query/000000 1 0 0 0 0 0 0\n", also="sAA.txt")), "--data", str(w.data), "--out", str(w.tmp / "s")],
+        "sAA.txt: names no scene under",
+    ),
+    "score: --out the data folder": (
+        "score",
+        lambda w: ["score", str(submission(w, "query/000000 1 0 0 0 0 0 0\n")), "--data", str(w.data), "--out", str(w.data)],
+        "overlaps the input",
+    ),
+    "leaderboard: a damaged queries table": (
+        "leaderboard",
+        lambda w: ["leaderboard", str(results_with(w, b"a,b\n1,2\n")), "--out", str(w.tmp / "lb")],
+        "tables/queries.csv: no column",
+    ),
+    "leaderboard: --out a results folder": (
+        "leaderboard",
+        lambda w: ["leaderboard", str(results_with(w, HEADER_ONLY)), "--out", str(w.inputs / "results")],
+        "overlaps the input",
+    ),
+    "show-map: --out inside the map": (
+        "show-map",
+        lambda w: ["show-map", str(w.map_dir), "--out", str(w.map_dir / "map.png")],
+        "overlaps the input",
+    ),
+    "show-map: --out not a PNG": (
+        "show-map", lambda w: ["show-map", str(w.map_dir), "--out", str(w.tmp / "map.txt")], "must end in .png"
+    ),
+    "preview: --out a scene's image": (
+        "preview",
+        lambda w: ["preview", str(w.scene), "--out", str(w.scene / "query" / "color" / "000000.png")],
+        "overlaps the input",
+    ),
+    "preview: --frames 0": ("preview", lambda w: ["preview", str(w.scene), "--frames", "0"], "--frames must be in [1, 32]"),
+    "train-encoder: --threads 0": (
+        "train-encoder",
+        lambda w: ["train-encoder", "--out", str(w.tmp / "enc"), "--threads", "0"],
+        "--threads must be >= 1",
+    ),
+    "train-encoder: --out the scenes of --data": (
+        "train-encoder",
+        lambda w: ["train-encoder", "--out", str(w.data), "--data", str(w.data)],
+        "overlaps the input",
+    ),
 }  # fmt: skip
 
 
-def submission(w: World, content: str | bytes) -> Path:
+SUITE_SCENE = "  - {{name: {name}, seed: 3, width: 32, height: 24, n_query: 2, max_mapping_frames: 2, n_displaced: 0, objects_per_room: 4{extra}}}\n"
+
+
+def suite_file(w: World, extra: str = "", name: str = "s1", at: str = "suite.yaml") -> Path:
+    """A one-scene suite (``extra``: one more key of the scene, given inline)."""
+    p = w.inputs / at
+    p.parent.mkdir(parents=True, exist_ok=True)
+    p.write_text("scenes:\n" + SUITE_SCENE.format(name=name, extra=f", {extra}" if extra else ""))
+    return p
+
+
+def damaged(w: World, name: str, content: bytes) -> Path:
+    """A copy of scene sA under the inputs with one file replaced."""
+    copy = w.inputs / "data" / "sA"
+    shutil.copytree(w.scene, copy)
+    (copy / name).write_bytes(content)
+    return copy
+
+
+HEADER_ONLY = ",".join(BOARD_INPUT_COLUMNS).encode() + b"\n"
+"""A well-formed per-query table of no query."""
+
+
+def results_with(w: World, queries_csv: bytes) -> Path:
+    """A results folder whose tables/queries.csv holds ``queries_csv``."""
+    r = w.inputs / "results"
+    (r / "tables").mkdir(parents=True, exist_ok=True)
+    (r / "tables" / "queries.csv").write_bytes(queries_csv)
+    return r
+
+
+def submission(w: World, content: str | bytes, also: str = "") -> Path:
     sub = w.inputs / "submission"
     sub.mkdir(exist_ok=True)
-    (sub / "sA.txt").write_bytes(content.encode() if isinstance(content, str) else content)
+    for name in filter(None, ("sA.txt", also)):
+        (sub / name).parent.mkdir(parents=True, exist_ok=True)
+        (sub / name).write_bytes(content.encode() if isinstance(content, str) else content)
     return sub
 
 

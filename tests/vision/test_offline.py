@@ -84,7 +84,7 @@ def test_config_names_only_weights_passed_in(offline, tmp_path: Path) -> None:
     again = create_encoder("offline", **{k: v for k, v in offline.config().items() if k != "name"})
     assert again.weights_dir == WEIGHTS_DIR
     (tmp_path / "w").mkdir()
-    for f in ("config.json", "image_tower.pt"):
+    for f in ("config.json", "image_tower.pt", "manifest.json"):
         (tmp_path / "w" / f).write_bytes((WEIGHTS_DIR / f).read_bytes())
     assert create_encoder("offline", weights=str(tmp_path / "w")).config()["weights"] == str(tmp_path / "w")
 

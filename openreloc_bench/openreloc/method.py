@@ -68,6 +68,7 @@ from openreloc_bench.vision.base import (
     create_encoder,
     create_segmenter,
     encoder_fingerprint,
+    segmenter_fingerprint,
 )
 from openreloc_bench.vision.preprocess import touches_border
 
@@ -86,8 +87,9 @@ class OpenReLocConfig:
     """Describer giving each query object a phrase (the paper's LLM); ``openai`` for an HTTP model."""
     describer_options: dict[str, Any] = field(default_factory=dict)
     """Keyword arguments of the describer (it is always given the map's encoder)."""
-    segmenter: str = "graph"
-    """Segmenter of the predicted track (the oracle-mask track always uses the dataset masks, ``gt``)."""
+    segmenter: str = "learned"
+    """Segmenter of the predicted track, for the query and, where the mapping frames carry no masks, for
+    the map (the oracle-mask track always uses the dataset masks, ``gt``)."""
     segmenter_options: dict[str, Any] = field(default_factory=dict)
     """Keyword arguments of the predicted-track segmenter."""
     min_mask_frac: float = 0.0005
@@ -163,7 +165,11 @@ class OpenReLoc:
             "mapping": dataclasses.asdict(cfg.mapping),
         }
         if cfg.mapping.instances_from != "masks":  # the segmenter makes the map where frames carry no masks
-            out.update(segmenter=cfg.segmenter, segmenter_options=cfg.segmenter_options)
+            out.update(
+                segmenter=cfg.segmenter,
+                segmenter_options=cfg.segmenter_options,
+                segmenter_weights=segmenter_fingerprint(cfg.segmenter, cfg.segmenter_options),
+            )
         return out
 
     def build_map(self, mapping: SceneSequence, map_dir: Path) -> None:

@@ -13,4 +13,5 @@ from openreloc_bench.vision.base import (  # noqa: F401
     create_describer,
     create_encoder,
     create_segmenter,
+    segmenter_fingerprint,
 )

@@ -127,8 +127,19 @@ def create_encoder(name: str, **kwargs: Any) -> ImageTextEncoder:
 
 def encoder_fingerprint(name: str, options: dict[str, Any]) -> str:
     """The registered encoder's ``weights_fingerprint`` for these options ("" when it defines none)."""
-    factory = _ENCODERS.get(name)
-    fingerprint = getattr(factory, "weights_fingerprint", None)
+    return _fingerprint(_ENCODERS, name, options)
+
+
+def segmenter_fingerprint(name: str, options: dict[str, Any]) -> str:
+    """The registered segmenter's ``weights_fingerprint`` for these options ("" when it defines none):
+    maps built from a segmenter's masks record it, so retrained weights rebuild cached maps."""
+    return _fingerprint(_SEGMENTERS, name, options)
+
+
+def _fingerprint(table: dict[str, Callable[..., Any]], name: str, options: dict[str, Any]) -> str:
+    from openreloc_bench import vision  # noqa: F401  (imports the backends so they register)
+
+    fingerprint = getattr(table.get(name), "weights_fingerprint", None)
     return fingerprint(**options) if callable(fingerprint) else ""
 
 

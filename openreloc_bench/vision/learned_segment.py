@@ -15,6 +15,7 @@ by ``openreloc-bench train-segmenter``; the shipped ones live in ``vision/weight
 
 from __future__ import annotations
 
+import hashlib
 import io as _io
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -204,6 +205,12 @@ class LearnedSegmenter(Segmenter):
         if threads < 1:
             raise InputError(f"learned segmenter: 'threads' must be >= 1, got {threads}")
         self.min_area_frac, self.threads = min_area_frac, int(threads)
+
+    @classmethod
+    def weights_fingerprint(cls, weights: str | Path | None = None, **_: Any) -> str:
+        """sha256 (12 hex digits) of the network file the options name, without loading it."""
+        pt = (Path(weights) if weights is not None else DEFAULT_WEIGHTS) / MODEL_FILE
+        return hashlib.sha256(pt.read_bytes()).hexdigest()[:12] if pt.is_file() else "missing"
 
     def config(self) -> dict[str, Any]:
         return {"name": self.name, "card": self.card.get("id", ""), "threshold": self.threshold, **asdict(self.net_cfg)}

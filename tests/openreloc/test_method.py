@@ -448,6 +448,8 @@ def test_map_config_ignores_query_time_settings() -> None:
         assert create_method("openreloc", **query_time).map_config() == base
     # the segmenter makes predicted-track maps; maps voted from the dataset masks do not depend on it
     assert create_method("openreloc", segmenter="noisy-gt").map_config() != base
+    weights = create_method("openreloc").map_config()["segmenter_weights"]
+    assert len(weights) == 12  # predicted maps are rebuilt when the segmenter is retrained
     voted = {"mapping": {"instances_from": "masks"}}
     assert (
         create_method("openreloc", segmenter="noisy-gt", **voted).map_config()

@@ -112,3 +112,16 @@ def test_weights_of_another_network_shape_are_refused(weights: Path, tmp_path: P
 def test_invalid_options_are_one_line_errors(weights: Path, options: dict) -> None:
     with pytest.raises(InputError):
         create_segmenter("learned", weights=str(weights), **options)
+
+
+def test_the_weights_fingerprint_follows_the_network_file(weights: Path, tmp_path: Path) -> None:
+    from openreloc_bench.vision.base import segmenter_fingerprint
+
+    shutil.copytree(weights, tmp_path / "w")
+    before = segmenter_fingerprint("learned", {"weights": str(tmp_path / "w")})
+    assert before == segmenter_fingerprint("learned", {"weights": str(weights)}) and len(before) == 12
+    torch.manual_seed(1)
+    cfg = NetConfig(widths=(4, 8, 8), work_width=64)
+    save_weights(tmp_path / "w", BoundaryNet(cfg), cfg, {"threshold": 0.5})
+    assert segmenter_fingerprint("learned", {"weights": str(tmp_path / "w")}) != before
+    assert segmenter_fingerprint("graph", {}) == ""

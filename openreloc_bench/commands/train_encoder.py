@@ -68,6 +68,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--device", default="cpu", help="torch device of the training steps: cpu (the shipped weights), cuda, cuda:N"
     )
     parser.add_argument(
+        "--crop-segmenter",
+        default="",
+        help="cut crops by this segmenter's masks (e.g. learned: noisy borders and parts, as in the predicted "
+        "track) instead of the dataset's; each mask is labelled with the object holding most of it",
+    )
+    parser.add_argument("--init", type=Path, help="weights directory to start from (fine-tuning)")
+    parser.add_argument(
         "--repeat-threshold",
         type=float,
         default=0.0,
@@ -129,9 +136,10 @@ def _train(args: argparse.Namespace, device: torch.device) -> int:
     from openreloc_bench import config as cfgmod
     from openreloc_bench.data import io
     from openreloc_bench.data.scene import check_scene_info
+    from openreloc_bench.vision import create_segmenter, segmenter_fingerprint
     from openreloc_bench.vision import vocabulary as voc
     from openreloc_bench.vision.crops import CropSet, crops_from_scenes
-    from openreloc_bench.vision.offline import MINILM_PACKAGE, OfflineEncoder, TextTower, TowerConfig
+    from openreloc_bench.vision.offline import MINILM_PACKAGE, OfflineEncoder, TextTower, TowerConfig, load_tower
     from openreloc_bench.vision.training import TrainConfig, evaluate, save_weights, train_tower
 
     torch.set_num_threads(args.threads)
@@ -153,18 +161,25 @@ def _train(args: argparse.Namespace, device: torch.device) -> int:
     eval_seeds = [infos[d].get("seed") for d in eval_dirs]
     if set(train_seeds) & set(eval_seeds):
         raise ConfigError("training and evaluation scenes share seeds; evaluation must be on held-out scenes")
+    segmenter = create_segmenter(args.crop_segmenter) if args.crop_segmenter else None
+    init, init_cfg, _ = load_tower(args.init) if args.init else (None, None, None)
     sets = []
     for name, dirs, seed in (("train", train_dirs, args.seed), ("eval", eval_dirs, args.seed + 1)):
         # crops are cached in OUT, keyed by the scenes (names and spec hashes: a regenerated scene is cut
         # again) and the sampling, so re-training is cheap; a damaged cache is cut again too
         scenes = [[d.name, infos[d].get("spec_hash")] for d in dirs]
-        key = hashlib.sha1(json.dumps([scenes, args.views, seed, list(CROP_SPLITS)]).encode()).hexdigest()[:12]
+        cut_by = [args.crop_segmenter, segmenter_fingerprint(args.crop_segmenter, {})] if args.crop_segmenter else []
+        key = hashlib.sha1(json.dumps([scenes, args.views, seed, list(CROP_SPLITS), *cut_by]).encode()).hexdigest()[:12]
         cache = args.out / "crops" / f"{name}-{key}.npz"
         try:
             sets.append(CropSet.load(cache))
         except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile):
             crops = crops_from_scenes(
-                dirs, splits=CROP_SPLITS, max_views_per_object=args.views, rng=np.random.default_rng(seed)
+                dirs,
+                splits=CROP_SPLITS,
+                max_views_per_object=args.views,
+                rng=np.random.default_rng(seed),
+                segmenter=segmenter,
             )
             buf = io_.BytesIO()
             crops.save(buf)
@@ -188,7 +203,9 @@ def _train(args: argparse.Namespace, device: torch.device) -> int:
         device=args.device,
     )
     tower_cfg = TowerConfig(input_size=args.input_size)
-    tower, info = train_tower(train, text, cfg, tower_cfg, log=lambda m: print(m, flush=True))
+    if init_cfg is not None and init_cfg != tower_cfg:
+        raise ConfigError(f"--init {args.init}: its tower {init_cfg} differs from this run's {tower_cfg}")
+    tower, info = train_tower(train, text, cfg, tower_cfg, log=lambda m: print(m, flush=True), init=init)
     meta = {
         "text_model": MINILM_PACKAGE,
         "text_model_hub_id": "sentence-transformers/all-MiniLM-L6-v2",
@@ -200,6 +217,8 @@ def _train(args: argparse.Namespace, device: torch.device) -> int:
             "eval_seeds": eval_seeds,
             "splits": list(CROP_SPLITS),
             "views_per_object_and_split": args.views,
+            "crops_cut_by": args.crop_segmenter or "dataset masks",
+            "init": str(args.init) if args.init else None,
             "render_size": [args.width, args.height],
             "train_crops": len(train),
             "train_objects": len(set(train.instance_keys)),
@@ -217,7 +236,11 @@ def _train(args: argparse.Namespace, device: torch.device) -> int:
     }
     save_weights(args.out, tower, tower_cfg, meta)
     enc = OfflineEncoder(args.out)
-    result = evaluate(enc.encode_images, enc.encode_texts, held, categories=sorted(set(train.category)))
+    categories = sorted(set(train.category))
+    result = evaluate(enc.encode_images, enc.encode_texts, held, categories=categories)
+    if args.init:  # the same held-out crops, before fine-tuning
+        before = OfflineEncoder(args.init)
+        result["init"] = evaluate(before.encode_images, before.encode_texts, held, categories=categories)
     io.write_json(args.out / "evaluation.json", result)
     keys = (
         "zero_shot_top1",

@@ -14,6 +14,7 @@ import numpy as np
 from tqdm import tqdm
 
 from openreloc_bench.data.scene import Scene
+from openreloc_bench.vision.base import Segmenter
 from openreloc_bench.vision.preprocess import mask_box, resize_square, square_crop
 
 
@@ -75,11 +76,16 @@ def scene_crops(
     min_area: int = 150,
     max_views_per_object: int = 0,
     rng: np.random.Generator | None = None,
+    segmenter: Segmenter | None = None,
+    min_purity: float = 0.6,
 ) -> CropSet:
     """Crops of every non-structural object visible with >= ``min_area`` pixels, per frame of ``splits``.
 
     ``max_views_per_object`` > 0 keeps that many random views per (split, object) (needs ``rng``),
-    so large scenes do not flood the data with near-identical neighbouring frames.
+    so large scenes do not flood the data with near-identical neighbouring frames. With a
+    ``segmenter`` the crops are cut by its masks instead of the dataset's (noisy borders, parts, what
+    the predicted track sees): each mask is labelled with the object holding at least ``min_purity``
+    of its pixels, and masks on no single object are skipped.
     """
     scene = Scene(scene_dir)
     objects = {i: o for i, o in scene.objects.items() if not o.structural}
@@ -91,12 +97,9 @@ def scene_crops(
         for frame in seq:
             if frame.instance is None:
                 continue
-            ids, counts = np.unique(frame.instance, return_counts=True)
-            for oid, n in zip(ids.tolist(), counts.tolist()):
-                if oid in objects and n >= min_area:
-                    box = mask_box(frame.instance == oid)
-                    crop = resize_square(square_crop(frame.color, box), size)
-                    per_obj.setdefault(oid, []).append((split, frame.name.split("/")[-1], oid, crop))
+            for oid, box in _labelled_boxes(frame.color, frame.instance, objects, min_area, segmenter, min_purity):
+                crop = resize_square(square_crop(frame.color, box), size)
+                per_obj.setdefault(oid, []).append((split, frame.name.split("/")[-1], oid, crop))
         for oid in sorted(per_obj):
             views = per_obj[oid]
             if max_views_per_object and len(views) > max_views_per_object:
@@ -117,6 +120,34 @@ def scene_crops(
         material=[str(o.attributes.get("material", "")) for o in obj],
         description=[o.description for o in obj],
     )
+
+
+def _labelled_boxes(
+    rgb: np.ndarray,
+    instance: np.ndarray,
+    objects: dict,
+    min_area: int,
+    segmenter: Segmenter | None,
+    min_purity: float,
+) -> list[tuple[int, np.ndarray]]:
+    """(object id, box) of each crop of a frame: the dataset's masks, or the segmenter's labelled by purity."""
+    if segmenter is None:
+        ids, counts = np.unique(instance, return_counts=True)
+        return [
+            (oid, mask_box(instance == oid))
+            for oid, n in zip(ids.tolist(), counts.tolist())
+            if oid in objects and n >= min_area
+        ]
+    out = []
+    for m in segmenter.segment(rgb):
+        area = int(m.mask.sum())
+        if area < min_area:
+            continue
+        ids, counts = np.unique(instance[m.mask], return_counts=True)
+        k = int(np.argmax(counts))
+        if int(ids[k]) in objects and counts[k] >= min_purity * area:
+            out.append((int(ids[k]), m.box))
+    return out
 
 
 def crops_from_scenes(scene_dirs: list[Path], progress: bool = True, **kwargs: object) -> CropSet:

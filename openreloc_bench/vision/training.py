@@ -142,8 +142,12 @@ def train_tower(
     cfg: TrainConfig,
     tower_cfg: TowerConfig | None = None,
     log: Callable[[str], None] = print,
+    init: ImageTower | None = None,
 ) -> tuple[ImageTower, dict[str, Any]]:
-    """Train an image tower on ``crops``; return it (eval mode) and a small training history."""
+    """Train an image tower on ``crops``; return it (eval mode) and a small training history.
+
+    ``init``: a trained tower of the same shape to start from (fine-tuning), instead of random weights.
+    """
     if len(crops) < 2:
         raise ValueError(f"need at least 2 training crops, got {len(crops)}")
     tower_cfg = tower_cfg or TowerConfig()
@@ -167,7 +171,10 @@ def train_tower(
     )
 
     # channels_last: faster convolutions on CPUs (oneDNN's preferred layout)
-    tower = ImageTower(tower_cfg).to(device, memory_format=torch.channels_last)
+    tower = ImageTower(tower_cfg)
+    if init is not None:
+        tower.load_state_dict(init.state_dict())
+    tower = tower.to(device, memory_format=torch.channels_last)
     logit_scale = torch.nn.Parameter(torch.tensor(math.log(1 / cfg.init_temperature), device=device))
     opt = torch.optim.AdamW([*tower.parameters(), logit_scale], lr=cfg.lr, weight_decay=cfg.weight_decay)
     n = len(crops)

@@ -94,3 +94,46 @@ def test_defaults_are_the_recipe_of_the_shipped_weights() -> None:
     assert (args.scenes, args.eval_scenes) == (len(data["train_scenes"]), len(data["eval_scenes"]))
     assert (args.views, [args.width, args.height]) == (data["views_per_object_and_split"], data["render_size"])
     assert args.input_size == shipped["tower"]["input_size"]
+
+
+def test_fine_tuning_on_a_segmenters_crops_reports_before_and_after(trained: tuple[Path, Path], tmp_path: Path) -> None:
+    data, first = trained
+    argv = ["--init", str(first), "--crop-segmenter", "learned"]
+    assert (
+        main(
+            [
+                "train-encoder",
+                "--out",
+                str(tmp_path / "ft"),
+                "--data",
+                str(data),
+                "--epochs",
+                "1",
+                "--threads",
+                "1",
+                *argv,
+            ]
+        )
+        == 0
+    )
+    ev = json.loads((tmp_path / "ft" / "evaluation.json").read_text())
+    cfg = json.loads((tmp_path / "ft" / "config.json").read_text())
+    assert cfg["data"]["crops_cut_by"] == "learned" and cfg["data"]["init"] == str(first)
+    assert {"zero_shot_top1", "instance_recall1_within_scene"} <= set(ev["init"])
+
+
+def test_fine_tuning_from_another_tower_shape_is_refused(trained: tuple[Path, Path], tmp_path: Path, capsys) -> None:
+    data, first = trained
+    argv = [
+        "train-encoder",
+        "--out",
+        str(tmp_path / "ft"),
+        "--data",
+        str(data),
+        "--init",
+        str(first),
+        "--input-size",
+        "24",
+    ]
+    assert main(argv) == 2
+    assert "differs from this run's" in capsys.readouterr().err

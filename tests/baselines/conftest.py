@@ -1,0 +1,49 @@
+"""Two tiny generated rooms shared by the baseline tests: one to map, one that is another scene."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+
+from generators.generate import generate_scene
+from generators.spec import SceneSpec
+from openreloc_bench.data.scene import Scene
+from openreloc_bench.methods import create_method
+
+TINY = dict(
+    width=320,
+    height=240,
+    objects_per_room=15,
+    room_side_min=3.5,
+    room_side_max=4.0,
+    mapping_step_m=0.5,
+    mapping_step_deg=30.0,
+    max_mapping_frames=16,
+    n_query=3,
+    n_displaced=1,
+)
+
+
+@pytest.fixture(scope="session")
+def scenes(tmp_path_factory: pytest.TempPathFactory) -> tuple[Scene, Scene]:
+    """(the mapped room, another room)."""
+    root = tmp_path_factory.mktemp("baseline-scenes")
+    return tuple(
+        Scene(generate_scene(SceneSpec(name=f"room{s}", seed=s, **TINY), root, progress=False)) for s in (5, 6)
+    )
+
+
+@pytest.fixture(scope="session")
+def built_map(scenes: tuple[Scene, Scene], tmp_path_factory: pytest.TempPathFactory) -> Callable[[str], Path]:
+    """``built_map(method name)``: the directory of that method's default map of the first room, built once."""
+    maps: dict[str, Path] = {}
+
+    def build(name: str) -> Path:
+        if name not in maps:
+            maps[name] = tmp_path_factory.mktemp(name)
+            create_method(name).build_map(scenes[0].sequence("mapping"), maps[name])
+        return maps[name]
+
+    return build

@@ -1,0 +1,66 @@
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from baselines.features import FeatureMap
+from baselines.sift_pnp import MAP_FORMAT, MAP_VERSION, SiftPnP
+from openreloc_bench.data.scene import Scene
+from openreloc_bench.errors import ConfigError
+from openreloc_bench.methods import create_method
+from tests.baselines import contract
+
+NAME = "sift-pnp"
+
+
+def test_registered() -> None:
+    contract.check_registered(NAME)
+
+
+def test_mapping_frames_localize(built_map: Callable[[str], Path], scenes: tuple[Scene, Scene]) -> None:
+    contract.check_mapping_frames_localize(NAME, built_map(NAME), scenes[0])
+
+
+def test_other_scene_fails(built_map: Callable[[str], Path], scenes: tuple[Scene, Scene]) -> None:
+    contract.check_other_scene_fails(NAME, built_map(NAME), scenes[1])
+
+
+def test_ignores_masks(built_map: Callable[[str], Path], scenes: tuple[Scene, Scene]) -> None:
+    contract.check_ignores_masks(NAME, built_map(NAME), scenes[0])
+
+
+def test_damaged_maps(built_map: Callable[[str], Path], tmp_path: Path) -> None:
+    contract.check_damaged_maps(NAME, built_map(NAME), tmp_path)
+
+
+def test_map_holds_what_queries_need(built_map: Callable[[str], Path], scenes: tuple[Scene, Scene]) -> None:
+    fmap = FeatureMap.load(built_map(NAME), MAP_FORMAT, MAP_VERSION)
+    n_frames = len(scenes[0].sequence("mapping"))
+    assert fmap.n_frames == n_frames and fmap.features.descriptors.shape[1] == 128
+    assert fmap.features.octaves is None  # SIFT's orientation and octave are not used at query time
+    assert fmap.arrays["vlad"].shape[0] == n_frames
+    assert fmap.meta["config"] == SiftPnP().map_config()
+
+
+def test_query_time_settings_share_maps() -> None:
+    assert SiftPnP(retrieval_k=3, ratio=0.7).map_config() == SiftPnP().map_config()
+    assert SiftPnP(features={"max_keypoints": 100}).map_config() != SiftPnP().map_config()
+
+
+def test_few_keypoints_fail(built_map: Callable[[str], Path], scenes: tuple[Scene, Scene]) -> None:
+    query, _ = contract.query_of(scenes[0], "query", 0)
+    query.color = np.full_like(query.color, 128)  # a flat image has no SIFT keypoint
+    res = contract.loaded(NAME, built_map(NAME)).localize(query)
+    assert "keypoints" in res.reason
+
+
+@pytest.mark.parametrize(
+    "overrides",
+    [{"ratio": 1.5}, {"retrieval_k": 0}, {"min_inliers": 2}, {"features": {"contrast_threshold": -1}}, {"nope": 1}],
+)
+def test_config_validation(overrides: dict) -> None:
+    with pytest.raises(ConfigError):
+        create_method(NAME, **overrides)

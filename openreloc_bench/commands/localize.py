@@ -26,7 +26,7 @@ from tqdm import tqdm
 
 from openreloc_bench import geometry
 from openreloc_bench.commands.options import add_method_arguments, method_overrides
-from openreloc_bench.data import io, paths
+from openreloc_bench.data import io, mapfile, paths
 from openreloc_bench.data.results import write_results
 from openreloc_bench.data.scene import QUERY_SPLITS, Scene
 from openreloc_bench.data.types import SceneSequence
@@ -125,6 +125,18 @@ def _json_safe(v: Any) -> Any:
     return v
 
 
+def check_map_scene(map_dir: Path, scene: Scene) -> None:
+    """ConfigError when ``map`` recorded building the map from another scene than ``scene`` (every pose
+    would be in the other scene's frame: silently wrong)."""
+    source = mapfile.recorded_source(map_dir)
+    if source is not None and source.get("spec_hash") != scene.spec_hash:
+        raise ConfigError(
+            f"{map_dir} is a map of scene '{source.get('scene')}' (spec {source.get('spec_hash')}), not of "
+            f"{scene.root} (spec {scene.spec_hash}): localize against the scene it was built from, or build "
+            "a map of this one with 'openreloc-bench map'"
+        )
+
+
 def run(args: argparse.Namespace) -> int:
     for flag, out in (("--out", args.out), ("--diagnostics", args.diagnostics)):
         if out is not None:
@@ -132,7 +144,9 @@ def run(args: argparse.Namespace) -> int:
     if args.diagnostics is not None and args.diagnostics.resolve() == args.out.resolve():
         raise ConfigError(f"--diagnostics and --out are the same file {args.out}; give two paths")
     method = create_method(args.method, **method_overrides(args))
-    seq = Scene(args.scene).sequence(args.split)
+    scene = Scene(args.scene)
+    seq = scene.sequence(args.split)
+    check_map_scene(args.map, scene)
     method.load_map(args.map)
     records = localize_split(method, seq, args.track)
     poses = {r.name: r.T_wc for r in records if r.T_wc is not None}

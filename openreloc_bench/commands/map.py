@@ -34,7 +34,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     paths.check_output(args.out, [args.scene], "--out")
     method = create_method(args.method, **method_overrides(args))
-    seq = Scene(args.scene).sequence("mapping")
+    scene = Scene(args.scene)
+    seq = scene.sequence("mapping")
     # the directory holds the map alone (its size is the map's): a previous map there is replaced,
     # anything else is refused; no other map build writes into it meanwhile
     with paths.directory_lock(args.out, "openreloc-bench map", in_directory=False):
@@ -49,6 +50,8 @@ def run(args: argparse.Namespace) -> int:
                 else:
                     p.unlink()
             raise
+        # what the map is of: `localize` refuses to pair it with another scene
+        mapfile.record_source(args.out, {"scene": scene.name, "spec_hash": scene.spec_hash})
         elapsed = time.perf_counter() - t0
     size = sum(p.stat().st_size for p in Path(args.out).rglob("*") if p.is_file())
     print(

@@ -26,6 +26,7 @@ from openreloc_bench.data import io
 from openreloc_bench.errors import ConfigError, DataError
 
 MANIFEST = "manifest.json"
+SOURCE_KEY = "built_from"
 
 
 def write_file_set(directory: Path | str, format_name: str, version: int, payload: dict[str, bytes]) -> None:
@@ -114,6 +115,27 @@ def clear_file_set(directory: Path | str) -> None:
         )
     for name in [MANIFEST, *sorted(listed)]:  # the manifest first: a half-cleared set is no longer a set
         (directory / name).unlink(missing_ok=True)
+
+
+def record_source(directory: Path | str, source: dict[str, str]) -> None:
+    """Note in a written file set's manifest what it was made from (``built_from``: e.g. a map's scene
+    and its spec hash), so that a reader can refuse to pair it with something else. A directory without
+    a manifest (a plugin's own format) is left as it is."""
+    path = Path(directory) / MANIFEST
+    if not path.is_file():
+        return
+    doc = io.read_json(path)
+    if not isinstance(doc, dict):
+        raise DataError(path, "not a file-set manifest")
+    io.write_json(path, {**doc, SOURCE_KEY: source})
+
+
+def recorded_source(directory: Path | str) -> dict[str, str] | None:
+    """What :func:`record_source` noted for this file set (None when nothing was, or there is no manifest)."""
+    path = Path(directory) / MANIFEST
+    doc = io.read_json(path) if path.is_file() else None
+    source = doc.get(SOURCE_KEY) if isinstance(doc, dict) else None
+    return source if isinstance(source, dict) else None
 
 
 def check_format(doc: Any, path: Path, format_name: str, version: int) -> None:

@@ -131,3 +131,16 @@ def test_unknown_method_and_bad_set_are_one_line_errors(tmp_path: Path, capsys: 
         == 2
     )
     assert "bogus" in capsys.readouterr().err
+
+
+def test_a_map_of_another_scene_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    """Poses against another scene's map would be in that scene's frame: refused, naming both."""
+    mapped, other = write_tiny_scene(tmp_path / "a", seed=0), write_tiny_scene(tmp_path / "b", seed=1)
+    common = ["--method", "nearest-frame", "--set", "thumb_size=8"]
+    assert main(["map", *common, "--scene", str(mapped), "--out", str(tmp_path / "m")]) == 0
+    out = tmp_path / "poses.txt"
+    args = ["localize", *common, "--map", str(tmp_path / "m"), "--out", str(out), "--scene"]
+    assert main([*args, str(other)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "map of scene 'a'" in err and "tiny-1" in err and "\n" not in err and not out.exists()
+    assert main([*args, str(mapped)]) == 0

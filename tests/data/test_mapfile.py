@@ -113,3 +113,15 @@ def test_a_cache_can_tell_an_intact_set_of_any_format(tmp_path: Path) -> None:
     write(tmp_path / "cut")
     (tmp_path / "cut" / "arrays.npz").write_bytes(b"x")
     assert not mapfile.is_intact(tmp_path / "cut") and not mapfile.is_intact(tmp_path / "none")
+
+
+def test_a_set_records_what_it_was_built_from(tmp_path: Path) -> None:
+    mapfile.write_file_set(tmp_path / "s", "fmt", 1, {"a.bin": b"x"})
+    assert mapfile.recorded_source(tmp_path / "s") is None
+    mapfile.record_source(tmp_path / "s", {"scene": "room1", "spec_hash": "abc"})
+    assert mapfile.recorded_source(tmp_path / "s") == {"scene": "room1", "spec_hash": "abc"}
+    assert mapfile.read_file_set(tmp_path / "s", "fmt", 1) == {"a.bin": b"x"}  # still an intact set
+    mapfile.clear_file_set(tmp_path / "s")
+    assert not any((tmp_path / "s").iterdir())
+    mapfile.record_source(tmp_path / "none", {"scene": "x"})  # no manifest (a plugin's format): left alone
+    assert not (tmp_path / "none").exists()

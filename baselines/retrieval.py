@@ -151,6 +151,8 @@ class VocabularyConfig:
     def __post_init__(self) -> None:
         if self.branching < 2 or self.depth < 1 or self.iterations < 1 or self.training_descriptors < 1:
             raise ValueError("need branching >= 2, depth >= 1, iterations >= 1 and training_descriptors >= 1")
+        if self.branching**self.depth > 10**7:
+            raise ValueError(f"{self.branching}^{self.depth} words is too many: at most 10^7 (ORBvoc has 10^6)")
 
 
 class VocabularyTree:

@@ -68,6 +68,17 @@ class MappingConfig:
     instances: mapping.InstanceConfig = field(default_factory=mapping.InstanceConfig)
     """Lifting masks to 3D objects (voting for instance masks, clustering for segmenter masks)."""
 
+    def __post_init__(self) -> None:
+        cfglib.check_ranges(
+            self,
+            positive=("ellipsoid_scale",),
+            non_negative=("keyframe_neighbours", "nearest_objects"),
+            at_least_one=("min_detections",),
+            share=("min_mask_share", "ellipsoid_trim"),
+        )
+        if self.ellipsoid_trim >= 0.5:
+            raise ValueError(f"'ellipsoid_trim' must be below 0.5, got {self.ellipsoid_trim!r}")
+
 
 def instance_source(seq: SceneSequence, cfg: MappingConfig) -> str:
     """'masks' or 'segmenter', resolving 'auto' by whether the frames carry instance masks."""

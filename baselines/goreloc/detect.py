@@ -22,6 +22,7 @@ import cv2
 import numpy as np
 
 from baselines.goreloc.vocabulary import COCO_CLASSES
+from openreloc_bench import config as cfglib
 from openreloc_bench.vision import vocabulary as voc
 from openreloc_bench.vision.base import ImageTextEncoder, ObjectMask
 from openreloc_bench.vision.preprocess import square_crop
@@ -45,6 +46,15 @@ class DetectionFilterConfig:
     """A detection overlapping an already kept one of its label by more than this IoU is a duplicate."""
     other_label_iou: float = 0.6
     """...and one of another label by more than this."""
+
+    def __post_init__(self) -> None:
+        cfglib.check_ranges(
+            self,
+            non_negative=("min_box_area",),
+            share=("min_score", "max_box_share", "min_ellipse_iou", "same_label_iou", "other_label_iou"),
+        )
+        if not self.border_px >= -1e6:  # negative: boxes touching the border are kept too
+            raise ValueError(f"'border_px' must be a number, got {self.border_px!r}")
 
 
 @dataclass

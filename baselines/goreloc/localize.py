@@ -26,6 +26,7 @@ import cv2
 import numpy as np
 
 from baselines.goreloc.ellipsoid import ngwd, project_quadrics, projection_matrix
+from openreloc_bench import config as cfglib
 from openreloc_bench import geometry
 
 
@@ -54,6 +55,14 @@ class RansacConfig:
     lm_chi2: float = 5.91
     """Outlier threshold on the weighted squared reprojection error (px^2), the weight being
     1 / frequency of the object's label among its detections."""
+
+    def __post_init__(self) -> None:
+        cfglib.check_ranges(
+            self,
+            positive=("ngwd_scale", "max_cost", "inlier_error", "lm_chi2"),
+            non_negative=("lm_iterations", "lm_more_iterations"),
+            at_least_one=("iterations", "hypotheses_per_iteration", "tries_per_iteration"),
+        )
 
 
 @dataclass

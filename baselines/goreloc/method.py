@@ -81,6 +81,16 @@ class GORelocConfig:
     seed: int = 0
     """Seed of the RANSAC's draws (every query starts from it: results do not depend on query order)."""
 
+    def __post_init__(self) -> None:
+        cfglib.check_ranges(
+            self,
+            positive=("zero_shot_scale",),
+            at_least_one=("frame_neighbours", "candidates"),
+            non_negative=("min_cosine", "seed"),
+        )
+        if self.min_frame_nodes < 3 or self.min_candidate_nodes < 3:
+            raise ValueError("min_frame_nodes and min_candidate_nodes must be >= 3 (P3P needs three objects)")
+
 
 class GOReloc:
     """GOReloc, registered as ``goreloc``."""

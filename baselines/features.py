@@ -29,10 +29,6 @@ from openreloc_bench.data import mapfile
 from openreloc_bench.data.types import SceneSequence
 from openreloc_bench.errors import DataError
 
-ARRAYS = "arrays.npz"
-META = "meta.json"
-
-
 # --------------------------------------------------------------------------------------------
 # Extraction
 # --------------------------------------------------------------------------------------------
@@ -297,21 +293,14 @@ class FeatureMap:
         clash = set(arrays) & set(self.arrays)
         if clash:
             raise ValueError(f"method arrays may not reuse the names {sorted(clash)}")
-        meta = {"format": self.format, "version": self.version, "width": int(self.width), "height": int(self.height)}
-        payload = {
-            ARRAYS: mapfile.npz_bytes({**arrays, **self.arrays}),
-            META: mapfile.json_bytes({**self.meta, **meta}),
-        }
-        mapfile.write_file_set(map_dir, self.format, self.version, payload)
+        meta = {**self.meta, "width": int(self.width), "height": int(self.height)}
+        mapfile.write_arrays(map_dir, self.format, self.version, {**arrays, **self.arrays}, meta)
 
     @classmethod
     def load(cls, map_dir: Path | str, format: str, version: int) -> FeatureMap:
         """Read a map written by :meth:`save`; a :class:`DataError` naming the file on any problem."""
         map_dir = Path(map_dir)
-        blobs = mapfile.read_file_set(map_dir, format, version, {ARRAYS, META})
-        meta = mapfile.load_json(blobs[META], map_dir / META)
-        mapfile.check_format(meta, map_dir / META, format, version)
-        arrays = mapfile.load_npz(blobs[ARRAYS], map_dir / ARRAYS)
+        arrays, meta = mapfile.read_arrays(map_dir, format, version)
         try:
             a = dict(arrays)
             features = Keypoints(a.pop("xy"), a.pop("descriptors"), a.pop("octaves", None), a.pop("angles", None))
@@ -339,9 +328,9 @@ class FeatureMap:
                 and len(features.xy) == len(features.descriptors) == n
             )
         except (KeyError, TypeError, ValueError, IndexError) as e:
-            raise DataError(Path(map_dir) / ARRAYS, f"malformed map arrays ({type(e).__name__}: {e})") from None
+            raise DataError(Path(map_dir) / mapfile.ARRAYS, f"malformed map arrays ({type(e).__name__}: {e})") from None
         if not consistent:
-            raise DataError(Path(map_dir) / ARRAYS, "malformed map arrays (inconsistent shapes)")
+            raise DataError(Path(map_dir) / mapfile.ARRAYS, "malformed map arrays (inconsistent shapes)")
         return fmap
 
 

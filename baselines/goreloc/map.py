@@ -24,8 +24,6 @@ from openreloc_bench.errors import DataError
 
 FORMAT_NAME = "goreloc-map"
 FORMAT_VERSION = 1
-ARRAYS = "arrays.npz"
-META = "meta.json"
 
 
 @dataclass
@@ -83,8 +81,6 @@ class GORelocMap:
             "instance_labels": np.array([lab for _, lab in inst], np.int64),
         }
         meta = {
-            "format": FORMAT_NAME,
-            "version": FORMAT_VERSION,
             "K": np.asarray(self.K, np.float64).tolist(),
             "width": int(self.width),
             "height": int(self.height),
@@ -94,21 +90,13 @@ class GORelocMap:
             "stats": self.stats,
         }
         Path(map_dir).mkdir(parents=True, exist_ok=True)
-        mapfile.write_file_set(
-            map_dir,
-            FORMAT_NAME,
-            FORMAT_VERSION,
-            {ARRAYS: mapfile.npz_bytes(arrays), META: mapfile.json_bytes(meta)},
-        )
+        mapfile.write_arrays(map_dir, FORMAT_NAME, FORMAT_VERSION, arrays, meta)
 
     @classmethod
     def load(cls, map_dir: Path | str) -> GORelocMap:
         """Read a map written by :meth:`save`; a DataError naming the file on any inconsistency."""
         map_dir = Path(map_dir)
-        blobs = mapfile.read_file_set(map_dir, FORMAT_NAME, FORMAT_VERSION, {ARRAYS, META})
-        meta = mapfile.load_json(blobs[META], map_dir / META)
-        mapfile.check_format(meta, map_dir / META, FORMAT_NAME, FORMAT_VERSION)
-        a = mapfile.load_npz(blobs[ARRAYS], map_dir / ARRAYS)
+        a, meta = mapfile.read_arrays(map_dir, FORMAT_NAME, FORMAT_VERSION)
         try:
             m = cls(
                 ids=a["ids"],
@@ -127,7 +115,7 @@ class GORelocMap:
                 stats=meta["stats"],
             )
         except (KeyError, TypeError, ValueError) as e:
-            raise DataError(map_dir / ARRAYS, f"malformed map ({type(e).__name__}: {e})") from None
+            raise DataError(map_dir / mapfile.ARRAYS, f"malformed map ({type(e).__name__}: {e})") from None
         n = len(m.ids)
         shapes_ok = (
             m.centres.shape == (n, 3)
@@ -140,5 +128,5 @@ class GORelocMap:
             and (m.edges.size == 0 or (m.edges.min() >= 0 and m.edges.max() < n))
         )
         if not shapes_ok:
-            raise DataError(map_dir / ARRAYS, "malformed map (array shapes do not agree)")
+            raise DataError(map_dir / mapfile.ARRAYS, "malformed map (array shapes do not agree)")
         return m

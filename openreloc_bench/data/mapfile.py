@@ -27,6 +27,8 @@ from openreloc_bench.errors import ConfigError, DataError
 
 MANIFEST = "manifest.json"
 SOURCE_KEY = "built_from"
+ARRAYS = "arrays.npz"
+META = "meta.json"
 
 
 def write_file_set(directory: Path | str, format_name: str, version: int, payload: dict[str, bytes]) -> None:
@@ -42,6 +44,23 @@ def write_file_set(directory: Path | str, format_name: str, version: int, payloa
             "files": {n: {"sha256": hashlib.sha256(d).hexdigest(), "bytes": len(d)} for n, d in payload.items()},
         },
     )
+
+
+def write_arrays(
+    directory: Path | str, format_name: str, version: int, arrays: dict[str, np.ndarray], meta: dict[str, Any]
+) -> None:
+    """The usual map layout as a file set: ``arrays.npz`` and ``meta.json`` (which names the format too)."""
+    meta = {**meta, "format": format_name, "version": version}
+    write_file_set(directory, format_name, version, {ARRAYS: npz_bytes(arrays), META: json_bytes(meta)})
+
+
+def read_arrays(directory: Path | str, format_name: str, version: int) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+    """``(arrays, meta)`` of a set written by :func:`write_arrays`, verified; DataError naming the file."""
+    directory = Path(directory)
+    blobs = read_file_set(directory, format_name, version, {ARRAYS, META})
+    meta = load_json(blobs[META], directory / META)
+    check_format(meta, directory / META, format_name, version)
+    return load_npz(blobs[ARRAYS], directory / ARRAYS), meta
 
 
 def read_file_set(

@@ -28,8 +28,6 @@ from openreloc_bench.errors import DataError
 
 MAP_FORMAT_VERSION = 1
 MAP_FORMAT_NAME = "openreloc-map"
-ARRAYS = "arrays.npz"
-META = "meta.json"
 EDGE_KINDS = ("knn", "overlap")
 _POINT_QUANTUM_M = 0.001  # landmark points are stored to 1 mm (coarser only for boxes > 65 m)
 
@@ -152,8 +150,6 @@ class ObjectMap:
             "graph_edge_kind": np.array([e[2] for e in edges], dtype=np.uint8),
         }
         meta = {
-            "format": MAP_FORMAT_NAME,
-            "version": MAP_FORMAT_VERSION,
             "K": np.asarray(self.K, dtype=float).tolist(),
             "width": int(self.width),
             "height": int(self.height),
@@ -165,8 +161,7 @@ class ObjectMap:
                 str(lm.id): {"valid": bool(lm.valid), "category": lm.category, "n_views": int(lm.n_views)} for lm in lms
             },
         }
-        payload = {ARRAYS: mapfile.npz_bytes(arrays), META: mapfile.json_bytes(meta)}
-        mapfile.write_file_set(map_dir, MAP_FORMAT_NAME, MAP_FORMAT_VERSION, payload)
+        mapfile.write_arrays(map_dir, MAP_FORMAT_NAME, MAP_FORMAT_VERSION, arrays, meta)
 
     # ---------------------------------------------------------------------------------------- load
 
@@ -174,14 +169,11 @@ class ObjectMap:
     def load(cls, map_dir: Path | str) -> ObjectMap:
         """Read a map written by :meth:`save`; DataError naming the file on any inconsistency."""
         map_dir = Path(map_dir)
-        blobs = mapfile.read_file_set(map_dir, MAP_FORMAT_NAME, MAP_FORMAT_VERSION, {ARRAYS, META})
-        meta = mapfile.load_json(blobs[META], map_dir / META)
-        mapfile.check_format(meta, map_dir / META, MAP_FORMAT_NAME, MAP_FORMAT_VERSION)
-        a = mapfile.load_npz(blobs[ARRAYS], map_dir / ARRAYS)
+        a, meta = mapfile.read_arrays(map_dir, MAP_FORMAT_NAME, MAP_FORMAT_VERSION)
         try:
             return cls._from_arrays(a, meta)
         except (KeyError, ValueError, IndexError) as e:
-            raise DataError(map_dir / ARRAYS, f"malformed map arrays ({type(e).__name__}: {e})") from None
+            raise DataError(map_dir / mapfile.ARRAYS, f"malformed map arrays ({type(e).__name__}: {e})") from None
 
     @classmethod
     def _from_arrays(cls, a: dict[str, np.ndarray], meta: dict[str, Any]) -> ObjectMap:

@@ -1,4 +1,4 @@
-"""Checks every structure-based baseline passes (called by each method's test module)."""
+"""Checks every structure-based baseline passes (run for each by test_contract.py)."""
 
 from __future__ import annotations
 

@@ -16,26 +16,6 @@ from tests.baselines import contract
 NAME = "sift-pnp"
 
 
-def test_registered() -> None:
-    contract.check_registered(NAME)
-
-
-def test_mapping_frames_localize(built_map: Callable[[str], Path], scenes: tuple[Scene, Scene]) -> None:
-    contract.check_mapping_frames_localize(NAME, built_map(NAME), scenes[0])
-
-
-def test_other_scene_fails(built_map: Callable[[str], Path], scenes: tuple[Scene, Scene]) -> None:
-    contract.check_other_scene_fails(NAME, built_map(NAME), scenes[1])
-
-
-def test_ignores_masks(built_map: Callable[[str], Path], scenes: tuple[Scene, Scene]) -> None:
-    contract.check_ignores_masks(NAME, built_map(NAME), scenes[0])
-
-
-def test_damaged_maps(built_map: Callable[[str], Path], tmp_path: Path) -> None:
-    contract.check_damaged_maps(NAME, built_map(NAME), tmp_path)
-
-
 def test_map_holds_what_queries_need(built_map: Callable[[str], Path], scenes: tuple[Scene, Scene]) -> None:
     fmap = FeatureMap.load(built_map(NAME), MAP_FORMAT, MAP_VERSION)
     n_frames = len(scenes[0].sequence("mapping"))

@@ -62,6 +62,9 @@ def test_leaderboard_merges_eval_and_score_results(results: tuple[Path, Path], c
     lines = [ln for ln in md.splitlines() if ln.startswith("| test-oracle") or ln.startswith("| outside")]
     assert lines[0].startswith("| test-oracle")  # sorted by Recall@25cm within (track, split)
     assert "## Per scene: query" in md and "| outside | 100 / 0 |" in md
+    sizes = md.split("## Map size per scene [MB]")[1]  # the maps the eval built; a submission has none
+    assert "| test-oracle | oracle-mask |" in sizes and "| nearest-frame | oracle-mask |" in sizes
+    assert "outside" not in sizes and "| s1 | s2 |" in sizes
     page = (out / "index.html").read_text()
     assert '<table class="sortable">' in page and "addEventListener('click'" in page
     assert page.count("<tr>") == len(board) + 1

@@ -7,7 +7,6 @@ written with PIL/numpy so torchvision is never needed. Sizes and mean/std come f
 
 from __future__ import annotations
 
-import json
 import re
 from collections.abc import Sequence
 from pathlib import Path
@@ -17,7 +16,8 @@ import numpy as np
 import torch
 from PIL import Image
 
-from openreloc_bench.errors import ConfigError
+from openreloc_bench.data import io
+from openreloc_bench.errors import ConfigError, DataError
 from openreloc_bench.vision.base import ImageTextEncoder, l2_normalize, register_encoder
 from openreloc_bench.vision.preprocess import check_crops, check_texts
 
@@ -48,6 +48,17 @@ def clip_preprocess(
         out[i] = np.asarray(img.crop((left, top, left + size, top + size)), dtype=np.float32) / 255.0
     out = (out - np.asarray(mean, np.float32)) / np.asarray(std, np.float32)
     return torch.from_numpy(out.transpose(0, 3, 1, 2).copy())
+
+
+def _channel_values(value: Any, path: Path, key: str) -> tuple[float, float, float]:
+    """Three finite per-channel numbers (``std`` also > 0) from a preprocessor config, else a DataError."""
+    ok = isinstance(value, (list, tuple)) and len(value) == 3
+    ok = ok and all(isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v) for v in value)
+    if not ok or (key == "image_std" and min(value) <= 0):
+        raise DataError(
+            path, f"'{key}' must be three finite numbers{' > 0' if key == 'image_std' else ''}, got {value!r}"
+        )
+    return (float(value[0]), float(value[1]), float(value[2]))
 
 
 def _features(out: Any) -> torch.Tensor:
@@ -90,9 +101,10 @@ class ClipEncoder(ImageTextEncoder):
         self.mean, self.std = CLIP_MEAN, CLIP_STD
         pre = path / "preprocessor_config.json" if is_local else None
         if pre is not None and pre.is_file():
-            p = json.loads(pre.read_text())
-            self.mean = tuple(p.get("image_mean", CLIP_MEAN))
-            self.std = tuple(p.get("image_std", CLIP_STD))
+            p = io.read_json(pre)
+            p = p if isinstance(p, dict) else {}
+            self.mean = _channel_values(p.get("image_mean", CLIP_MEAN), pre, "image_mean")
+            self.std = _channel_values(p.get("image_std", CLIP_STD), pre, "image_std")
         self.max_length = int(self.model.config.text_config.max_position_embeddings)
         self.dim = int(self.model.config.projection_dim)
 

@@ -1,11 +1,12 @@
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from openreloc_bench.errors import ConfigError
+from openreloc_bench.errors import ConfigError, DataError
 from openreloc_bench.vision import create_encoder
 from openreloc_bench.vision.clip import clip_preprocess
 from openreloc_bench.vision.testing import tiny_clip_checkpoint
@@ -79,3 +80,22 @@ def test_checkpoint_helper_is_idempotent(tiny_clip_dir: Path) -> None:
     before = (tiny_clip_dir / "model.safetensors").stat().st_mtime_ns
     assert tiny_clip_checkpoint(tiny_clip_dir) == tiny_clip_dir
     assert (tiny_clip_dir / "model.safetensors").stat().st_mtime_ns == before
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("{not json", "not valid JSON"),
+        ('{"image_mean": [0.5, 0.5]}', "image_mean"),
+        ('{"image_std": [1, 0, 1]}', "> 0"),
+    ],
+)
+def test_malformed_preprocessor_config_is_a_one_line_error(
+    tiny_clip_dir: Path, tmp_path: Path, text: str, message: str
+) -> None:
+    copy = tmp_path / "clip"
+    shutil.copytree(tiny_clip_dir, copy)
+    (copy / "preprocessor_config.json").write_text(text)
+    with pytest.raises(DataError, match=message) as err:
+        create_encoder("clip", model=str(copy))
+    assert "preprocessor_config.json" in str(err.value) and "\n" not in str(err.value)

@@ -86,16 +86,7 @@ def board(suite: pd.DataFrame) -> pd.DataFrame:
     return b
 
 
-def map_sizes(q: pd.DataFrame, maps: pd.DataFrame) -> pd.DataFrame:
-    """Map size [MB] per (method, track) and scene: the maps the board's queries were localized against."""
-    used = q[["method", "track", "scene", "map_hash"]].drop_duplicates()
-    sizes = used.merge(maps, on=["map_hash", "scene"], how="inner")
-    if sizes.empty:
-        return pd.DataFrame()
-    return sizes.pivot_table(index=["method", "track"], columns="scene", values="map_mb", aggfunc="mean")
-
-
-def to_markdown(b: pd.DataFrame, scenes: pd.DataFrame, sizes: pd.DataFrame | None = None) -> str:
+def to_markdown(b: pd.DataFrame, scenes: pd.DataFrame) -> str:
     head = [BOARD_COLUMNS[c] for c in b.columns]
     lines = [
         "# openreloc-bench leaderboard",
@@ -114,7 +105,9 @@ def to_markdown(b: pd.DataFrame, scenes: pd.DataFrame, sizes: pd.DataFrame | Non
             "",
             paper_table(t, rows, sorted(t["scene"].unique())).rstrip(),
         ]
-    if sizes is not None and not sizes.empty:
+    # map size per (method, track) and scene, from the per-scene rows (runs without maps have none)
+    sizes = scenes.pivot_table(index=["method", "track"], columns="scene", values="map_mb", aggfunc="mean")
+    if not sizes.empty:
         lines += ["", "## Map size per scene [MB]", "", "| Method | Track | " + " | ".join(sizes.columns) + " |"]
         lines.append("|" + "---|" * (len(sizes.columns) + 2))
         for (method, track), row in sizes.iterrows():
@@ -231,8 +224,7 @@ def write_leaderboard(results: list[Path], out: Path) -> list[Path]:
     q = pool_seeds(load_queries(results))
     for r in results:
         paths.check_output(out, [r], "--out")
-    maps = load_maps(results)
-    scenes, suite = build_tables(q, maps)
+    scenes, suite = build_tables(q, load_maps(results))
     b = board(suite)
     out.mkdir(parents=True, exist_ok=True)
     plots_dir = out / "plots"
@@ -249,6 +241,6 @@ def write_leaderboard(results: list[Path], out: Path) -> list[Path]:
         plots.append(plots_dir / f"topdown_{scene}.png")
         plot_topdown(q, scene, plots[-1])
     io.atomic_write_text(out / "leaderboard.csv", suite.to_csv(index=False))
-    io.atomic_write_text(out / "leaderboard.md", to_markdown(b, scenes, map_sizes(q, maps)))
+    io.atomic_write_text(out / "leaderboard.md", to_markdown(b, scenes))
     io.atomic_write_text(out / "index.html", to_html(b, [str(p.relative_to(out)) for p in plots]))
     return [out / "leaderboard.md", out / "leaderboard.csv", out / "index.html", *plots]

@@ -15,7 +15,8 @@ from tqdm import tqdm
 
 from openreloc_bench.data.scene import Scene
 from openreloc_bench.vision.base import Segmenter
-from openreloc_bench.vision.preprocess import mask_box, resize_square, square_crop
+from openreloc_bench.vision.preprocess import resize_square, square_crop
+from openreloc_bench.vision.segment import GtSegmenter
 
 
 @dataclass
@@ -132,12 +133,8 @@ def _labelled_boxes(
 ) -> list[tuple[int, np.ndarray]]:
     """(object id, box) of each crop of a frame: the dataset's masks, or the segmenter's labelled by purity."""
     if segmenter is None:
-        ids, counts = np.unique(instance, return_counts=True)
-        return [
-            (oid, mask_box(instance == oid))
-            for oid, n in zip(ids.tolist(), counts.tolist())
-            if oid in objects and n >= min_area
-        ]
+        masks = GtSegmenter(min_area=min_area, ids=list(objects)).segment(rgb, instance)
+        return [(int(m.instance_id), m.box) for m in masks]
     out = []
     for m in segmenter.segment(rgb):
         area = int(m.mask.sum())

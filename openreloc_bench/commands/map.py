@@ -18,6 +18,7 @@ from pathlib import Path
 from openreloc_bench.commands.options import add_method_arguments, method_overrides
 from openreloc_bench.data import mapfile, paths
 from openreloc_bench.data.scene import Scene
+from openreloc_bench.harness.cache import dir_bytes
 from openreloc_bench.methods import create_method
 
 NAME = "map"
@@ -53,7 +54,7 @@ def run(args: argparse.Namespace) -> int:
         # what the map is of: `localize` refuses to pair it with another scene
         mapfile.record_source(args.out, {"scene": scene.name, "spec_hash": scene.spec_hash})
         elapsed = time.perf_counter() - t0
-    size = sum(p.stat().st_size for p in Path(args.out).rglob("*") if p.is_file())
+    size = dir_bytes(args.out)
     print(
         f"{args.method}: map of {len(seq)} mapping frames written to {args.out} ({size / 1e6:.3f} MB, {elapsed:.1f} s)"
     )

@@ -74,6 +74,20 @@ def test_eval_prints_the_spread_over_seeds(data: Path, tmp_path: Path, capsys: p
     assert (tmp_path / "r" / "tables" / "seeds.csv").is_file()
 
 
+@pytest.mark.parametrize("workers", ["1", "2"])
+def test_progress_counts_queries_and_frames_and_the_summary_ends(
+    data: Path, tmp_path: Path, capsys: pytest.CaptureFixture, workers: str
+) -> None:
+    args = ["--methods", "test-oracle", "--splits", "query,query_light1", "--workers", workers, "--timeout", "0"]
+    assert main(eval_args(data, tmp_path / "r", *args)) == 0
+    out, err = capsys.readouterr()
+    # one bar each: 2 scenes x 4 mapping frames, 2 scenes x 2 splits x 3 queries, with rate and ETA
+    assert err.count("maps:   0%") == 1 and "| 8/8 [" in err and "frame/s]" in err
+    assert err.count("queries:   0%") == 1 and "| 12/12 [" in err and "query/s]" in err and "<" in err
+    last = out.strip().splitlines()[-1]
+    assert last.startswith("maps: 2 built, 0 cached; jobs: 4 run, 0 resumed; queries: 12 of 12 localized; 0 errors")
+
+
 @pytest.mark.parametrize(
     "extra, message",
     [

@@ -69,6 +69,6 @@ def run(args: argparse.Namespace) -> int:
         report = convert.import_tum(args.src, args.out, args.stride, args.offset, K, args.max_dt)
     counts = ", ".join(f"{n} {split}" for split, n in report.frames.items())
     objects = f", {report.objects} objects" if report.objects else ""
-    skipped = f" ({len(report.skipped)} frames skipped: no valid pose or depth)" if report.skipped else ""
+    skipped = f" ({len(report.skipped)} frame(s) skipped: no valid pose or depth)" if report.skipped else ""
     print(f"{report.scene}: {counts} frames{objects}{skipped}")
     return 0

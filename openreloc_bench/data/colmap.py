@@ -15,6 +15,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+from tqdm import tqdm
 
 from openreloc_bench import geometry
 from openreloc_bench.data import io
@@ -53,7 +54,7 @@ def write_model(seq: SceneSequence, out: Path, voxel: float = 0.05, pixel_step: 
     if not seq.has_depth:
         raise ValueError(f"split '{seq.split}' has frames without depth")
     obs_image, obs_uv, obs_xyz, obs_rgb = [], [], [], []
-    for i, frame in enumerate(seq):
+    for i, frame in enumerate(tqdm(seq, desc="export", unit="frame", leave=False)):
         d = frame.depth[::pixel_step, ::pixel_step]  # type: ignore[index]
         v, u = np.nonzero(np.isfinite(d) & (d > 0))
         uv = np.stack([u, v], -1) * pixel_step

@@ -116,7 +116,10 @@ def _write_scene(
         raise ConfigError(f"need --stride >= 2 and 0 < --offset < --stride, got stride {stride}, offset {offset}")
     out = paths.check_output(out, inputs, "--out")
     if out.exists() and any(out.iterdir()):
-        raise ConfigError(f"--out {out} is not empty; converting writes a new scene directory")
+        raise ConfigError(
+            f"--out {out} is not empty; converting writes a new scene directory (one without scene.json is "
+            "an interrupted import: remove it and import again)"
+        )
     mapping, query = stride_split(seq, stride, offset)
     for split in (mapping, query):
         if not len(split):

@@ -18,7 +18,7 @@ def test_imported_scannet_scene_is_evaluated(tmp_path: Path, capsys: pytest.Capt
     src = write_sens_export(tmp_path / "scans" / "scene0000_00")
     data = tmp_path / "data"
     assert main(["import", "scannet", str(src), "--out", str(data / "scene0000_00")]) == 0
-    assert "2 mapping, 2 query frames, 3 objects (1 frames skipped" in capsys.readouterr().out
+    assert "2 mapping, 2 query frames, 3 objects (1 frame(s) skipped" in capsys.readouterr().out
     rc = main(
         [
             "eval",

@@ -33,7 +33,7 @@ import numpy as np
 import pandas as pd
 from tqdm import tqdm
 
-from openreloc_bench import geometry
+from openreloc_bench import bars, geometry
 from openreloc_bench.data import io, paths
 from openreloc_bench.data.results import write_results, write_tum
 from openreloc_bench.data.scene import Scene
@@ -317,7 +317,8 @@ def _build_map(job: MapJob) -> dict[str, Any]:
         paths.check_output(job.map_dir, [job.scene_dir], "map directory")
         mapping = Scene(job.scene_dir).sequence("mapping")
         mapping.load_instances = job.track == "oracle-mask"
-        return cache.build_map_cached(method, mapping, job.map_dir, job.spec_hash, job.provenance)
+        with bars.quiet():  # the evaluation's bar counts the frames
+            return cache.build_map_cached(method, mapping, job.map_dir, job.spec_hash, job.provenance)
     except Exception as e:  # noqa: BLE001 -- reported per job; other jobs go on
         log.debug("map job failed", exc_info=True)
         return {"error": f"{type(e).__name__}: {e}"}

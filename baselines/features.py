@@ -343,7 +343,7 @@ def build_feature_map(
     desc: str = "features",
 ) -> FeatureMap:
     """Extract features on every mapping frame and keep those with a valid world point (:func:`lift`)."""
-    from tqdm import tqdm
+    from openreloc_bench.bars import tqdm
 
     if not mapping.has_depth:
         raise DataError(mapping.split, "the mapping frames need depth (world points of the keypoints come from it)")

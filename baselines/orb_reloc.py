@@ -39,12 +39,12 @@ import cv2
 import numpy as np
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
-from tqdm import tqdm
 
 from baselines.features import FeatureMap, Keypoints, OrbConfig, build_feature_map, extract_orb
 from baselines.retrieval import VocabularyConfig, VocabularyTree, hamming_matrix
 from openreloc_bench import config as cfglib
 from openreloc_bench import geometry
+from openreloc_bench.bars import tqdm
 from openreloc_bench.data.types import SceneSequence
 from openreloc_bench.methods import Failure, PoseEstimate, QueryFrame
 

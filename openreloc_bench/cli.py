@@ -32,7 +32,9 @@ def build_parser() -> argparse.ArgumentParser:
         description="Object-level indoor camera relocalization: scene generator, OpenReLoc, baselines, harness.",
     )
     parser.add_argument("--version", action="version", version=f"openreloc-bench {__version__}")
-    parser.add_argument("-v", "--verbose", action="store_true", help="debug logging")
+    parser.add_argument(
+        "-v", "--verbose", action="store_true", help="debug logging, with other libraries' INFO and DEBUG lines"
+    )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for mod in command_modules():
         p = sub.add_parser(
@@ -43,12 +45,23 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+OWN_LOGGERS = ("openreloc_bench", "generators", "baselines")
+
+
+def configure_logging(verbose: bool) -> None:
+    """This project's INFO lines; other libraries' (PyOpenGL's accelerate notice, sentence-transformers,
+    numexpr) only from WARNING up, unless ``verbose`` (``-v``), which shows every library's DEBUG."""
+    logging.basicConfig(
+        level=logging.DEBUG if verbose else logging.WARNING, format="%(levelname)s %(name)s: %(message)s"
+    )
+    for name in OWN_LOGGERS:
+        logging.getLogger(name).setLevel(logging.DEBUG if verbose else logging.INFO)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    logging.basicConfig(
-        level=logging.DEBUG if args.verbose else logging.INFO, format="%(levelname)s %(name)s: %(message)s"
-    )
+    configure_logging(args.verbose)
     if not getattr(args, "_run", None):
         parser.print_help()
         return 2

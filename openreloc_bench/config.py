@@ -272,6 +272,36 @@ def dump_yaml(cfg: Any) -> str:
     return yaml.safe_dump(to_dict(cfg), sort_keys=False)
 
 
+def commented_yaml(cfg: Any, width: int = 100) -> str:
+    """``cfg`` (a dataclass instance) as YAML with each field's docstring as a comment above it, nested
+    sections indented: a settings file to read and edit, which :func:`from_dict` reads back to ``cfg``."""
+    lines: list[str] = []
+    _commented(cfg, 0, width, lines)
+    return "\n".join(lines) + "\n"
+
+
+def _commented(cfg: Any, depth: int, width: int, lines: list[str]) -> None:
+    indent = "  " * depth
+    docs = field_docs(type(cfg))
+    for f in dataclasses.fields(cfg):
+        value = getattr(cfg, f.name)
+        doc = docs.get(f.name) or (_section_doc(type(value)) if dataclasses.is_dataclass(value) else "")
+        if doc:
+            lines += textwrap.wrap(doc, width, initial_indent=f"{indent}# ", subsequent_indent=f"{indent}# ")
+        if dataclasses.is_dataclass(value):
+            lines.append(f"{indent}{f.name}:")
+            _commented(value, depth + 1, width, lines)
+        else:  # one flow-style line; dumping a one-item list quotes strings that would read as another type
+            flow = yaml.safe_dump([to_dict(value)], default_flow_style=True, width=math.inf).strip()[1:-1]
+            lines.append(f"{indent}{f.name}: {flow}")
+
+
+def _section_doc(cls: type) -> str:
+    """The first paragraph of a nested config's class docstring (not the one dataclasses makes up)."""
+    doc = inspect.getdoc(cls) or ""
+    return "" if doc.startswith(f"{cls.__name__}(") else " ".join(doc.split("\n\n")[0].split())
+
+
 @cache
 def field_docs(cls: type) -> dict[str, str]:
     """The docstring written under each field of a dataclass (for --help and generated docs)."""

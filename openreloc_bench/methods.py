@@ -16,9 +16,9 @@ from typing import Any, Protocol, runtime_checkable
 
 import cv2
 import numpy as np
-from tqdm import tqdm
 
 from openreloc_bench import config
+from openreloc_bench.bars import tqdm
 from openreloc_bench.data import mapfile
 from openreloc_bench.data.types import SceneSequence
 from openreloc_bench.errors import ConfigError, DataError

@@ -26,6 +26,11 @@ if [ ! -f "$stamp" ]; then
   .venv/bin/pip install -q --upgrade pip
   # torch first and exactly: a looser spec resolves to the newest CUDA build (gigabytes).
   .venv/bin/pip install -q torch==2.13.0
+  # open3d-cpu replaces the full open3d on Linux x86-64 and installs the same package: remove the full
+  # build first (afterwards, uninstalling it would delete the files the CPU build shares with it)
+  if [ "$(uname -sm)" = "Linux x86_64" ] && .venv/bin/pip show -q open3d >/dev/null 2>&1; then
+    .venv/bin/pip uninstall -q -y open3d
+  fi
   .venv/bin/pip install -q -e ".[${EXTRAS}]"
   rm -f .venv/.openreloc-setup-*
   touch "$stamp"

@@ -24,3 +24,24 @@ def test_console_script_help_and_user_error():
     assert out.returncode == 0 and "methods" in out.stdout
     bad = subprocess.run(exe + ["methods", "--bogus"], capture_output=True, text=True)
     assert bad.returncode == 2 and "unrecognized arguments" in bad.stderr
+
+
+def _log_lines(verbose: bool) -> str:
+    code = (
+        "import logging\n"
+        "from openreloc_bench.cli import configure_logging\n"
+        f"configure_logging({verbose})\n"
+        "logging.getLogger('OpenGL.acceleratesupport').info('No OpenGL_accelerate module loaded')\n"
+        "logging.getLogger('sentence_transformers').debug('Loading SentenceTransformer model')\n"
+        "logging.getLogger('openreloc_bench.harness').info('ours')\n"
+        "logging.getLogger('openreloc_bench.harness').debug('our detail')\n"
+    )
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stderr
+
+
+def test_other_libraries_info_lines_show_only_with_verbose():
+    quiet, verbose = _log_lines(False), _log_lines(True)
+    assert "INFO openreloc_bench.harness: ours" in quiet and "our detail" not in quiet
+    assert "OpenGL_accelerate" not in quiet and "SentenceTransformer" not in quiet
+    assert "INFO OpenGL.acceleratesupport: No OpenGL_accelerate" in verbose
+    assert "SentenceTransformer" in verbose and "our detail" in verbose

@@ -23,7 +23,6 @@ from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
-from tqdm import tqdm
 
 from baselines.goreloc.detect import Detection, DetectionFilterConfig, Labeller, TableLabeller, detect
 from baselines.goreloc.ellipsoid import fit_ellipsoid
@@ -31,6 +30,7 @@ from baselines.goreloc.graph import knn_adjacency
 from baselines.goreloc.map import GORelocMap
 from baselines.goreloc.vocabulary import N_CLASSES, coco_label
 from openreloc_bench import config as cfglib
+from openreloc_bench.bars import tqdm
 from openreloc_bench.data.scene import Scene
 from openreloc_bench.data.types import SceneSequence
 from openreloc_bench.errors import ConfigError, DataError

@@ -161,10 +161,6 @@ def run(args: argparse.Namespace) -> int:
     )  # fmt: skip
     report = runner.evaluate(cfg)
     queries = runner.load_run_queries(args.out)
-    print(
-        f"maps: {report.maps_built} built, {report.maps_cached} cached; jobs: {report.jobs_run} run, "
-        f"{report.jobs_skipped} resumed; {report.wall_s:.1f} s"
-    )
     if report.jobs_stale:
         print(f"resume: {report.jobs_stale} finished job(s) were run with other settings or scenes and were recomputed")
     if not queries.empty:
@@ -175,4 +171,9 @@ def run(args: argparse.Namespace) -> int:
         print(f"tables: {args.out / 'tables'}")
     for err in report.errors:
         print(f"error: {err}")
+    print(  # the summary last, where a user looks when the run ends
+        f"maps: {report.maps_built} built, {report.maps_cached} cached; jobs: {report.jobs_run} run, "
+        f"{report.jobs_skipped} resumed; queries: {report.queries_localized} of {report.queries} localized; "
+        f"{len(report.errors)} errors; {report.wall_s:.1f} s"
+    )
     return 1 if report.errors else 0

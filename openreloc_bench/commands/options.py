@@ -12,7 +12,12 @@ from openreloc_bench import config
 def add_method_arguments(p: argparse.ArgumentParser) -> None:
     """``--method``, ``--config`` and ``--set``: shared by ``map`` and ``localize``."""
     p.add_argument("--method", required=True, help="registered method name (see `openreloc-bench methods`)")
-    p.add_argument("--config", type=Path, help="YAML mapping of method config fields")
+    add_method_config_arguments(p)
+
+
+def add_method_config_arguments(p: argparse.ArgumentParser) -> None:
+    """``--config`` and ``--set``: a method's settings (``map``, ``localize``, ``config``)."""
+    p.add_argument("--config", type=Path, help="YAML mapping of method config fields (`openreloc-bench config METHOD`)")
     p.add_argument(
         "--set",
         dest="overrides",

@@ -1,9 +1,12 @@
 """Score pose files produced elsewhere (map-free style), so outside methods can enter the leaderboard.
 
-SUBMISSION_DIR holds one file per scene, ``<scene>.txt`` (names ``<split>/<frame id>``), or one per
-split, ``<scene>/<split>.txt``; each line ``name qw qx qy qz tx ty tz`` with (q, t) of T_cw.
-Queries without a line count as failures; duplicate names, NaNs, non-unit quaternions, files naming
-no scene under --data and a scene given in both layouts are errors. Tables (CSV + JSON) are written
+SUBMISSION_DIR holds one file per scene, ``<scene>.txt`` or map-free's ``pose_<scene>.txt`` (names
+``<split>/<frame id>``), or one per split, ``<scene>/<split>.txt``; each line ``name qw qx qy qz tx ty
+tz`` with (q, t) of T_cw, optionally followed by map-free's confidence (kept in the query table).
+``--names hloc`` reads hloc's image names (``query/color/000012.png``, relative to the scene directory,
+as ``export colmap`` lists them). Queries without a line count as failures; duplicate names, NaNs,
+non-unit quaternions, names of another style, files naming no scene under --data and a scene given
+in two layouts are errors. Tables (CSV + JSON) are written
 to --out, in the layout ``eval`` writes, for ``leaderboard``.
 """
 
@@ -15,6 +18,7 @@ from pathlib import Path
 import pandas as pd
 
 from openreloc_bench.data import paths
+from openreloc_bench.data.results import NAME_STYLES
 from openreloc_bench.errors import ConfigError
 from openreloc_bench.harness import score, tables
 from openreloc_bench.harness.suites import suite_scene_names
@@ -33,6 +37,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--splits", default="query", help="comma-separated query splits to score")
     p.add_argument("--method", help="name in the tables (default: the submission directory's name)")
+    p.add_argument(
+        "--names",
+        default="benchmark",
+        choices=NAME_STYLES,
+        help="how the files name queries: benchmark (query/000012) or hloc (query/color/000012.png)",
+    )
     p.add_argument("--track", default="predicted", choices=TRACKS, help="track the submission was produced in")
     p.add_argument(
         "--out",
@@ -52,7 +62,9 @@ def run(args: argparse.Namespace) -> int:
     name = args.submission.resolve().name
     out = args.out or Path(f"{name}-scores")
     paths.check_output(out, [args.submission, *(args.data / s for s in scenes)], "--out")
-    queries = score.score_submission(args.submission, args.data, scenes, splits, args.method or name, args.track)
+    queries = score.score_submission(
+        args.submission, args.data, scenes, splits, args.method or name, args.track, args.names
+    )
     maps = pd.DataFrame(columns=["map_hash", "scene", "map_mb", "mapping_time_s"])
     _, suite, _ = tables.write_tables(out / "tables", queries, maps)
     missing = queries[queries["reason"] == "missing"]

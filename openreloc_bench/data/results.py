@@ -2,11 +2,14 @@
 
 The benchmark format is the visual-localization one (hloc, map-free): one line per query,
 ``name qw qx qy qz tx ty tz`` with (q, t) of **T_cw** (world-to-camera), after ``#`` header lines.
+Files produced elsewhere may add map-free's confidence column and name queries hloc's way
+(:func:`read_submission`).
 A TUM export (``timestamp tx ty tz qx qy qz qw``, camera-to-world) is offered for ``evo``.
 """
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -37,12 +40,54 @@ def write_results(path: Path | str, poses_wc: dict[str, np.ndarray], comments: l
 def read_results(path: Path | str) -> dict[str, np.ndarray]:
     """Read a result file into {name: T_wc}. Malformed lines, duplicates, NaNs and non-unit
     quaternions are errors naming the file and line (a submission must be explicit)."""
+    return _read_pose_lines(path, confidence=False, names="benchmark")[0]
+
+
+NAME_STYLES = ("benchmark", "hloc")
+"""How a submission names its queries: ``benchmark`` (``query/000012``) or ``hloc``, the image path
+relative to the scene directory (``query/color/000012.png``), as hloc's pose files write it."""
+_HLOC_NAME = re.compile(r"^(?P<split>[^/]+)/color/(?P<id>[^/]+)\.(?:png|jpg|jpeg)$", re.IGNORECASE)
+
+
+def hloc_name(name: str) -> str | None:
+    """The benchmark name (``query/000012``) of an hloc image name (``query/color/000012.png``), else None."""
+    m = _HLOC_NAME.match(name)
+    return f"{m['split']}/{m['id']}" if m else None
+
+
+def read_submission(path: Path | str, names: str = "benchmark") -> tuple[dict[str, np.ndarray], dict[str, float]]:
+    """A pose file produced elsewhere: ({name: T_wc}, {name: confidence}).
+
+    Lines are ``name qw qx qy qz tx ty tz`` or, as map-free submissions write them, with a trailing
+    confidence (kept, not required; every line of a file has it or none). With ``names="hloc"`` each
+    name must be an hloc image name and is mapped to the benchmark's. Everything :func:`read_results`
+    refuses is refused here too, and two lines naming the same query after the mapping are duplicates.
+    """
+    if names not in NAME_STYLES:
+        raise ValueError(f"names must be one of {NAME_STYLES}, got {names!r}")
+    return _read_pose_lines(path, confidence=True, names=names)
+
+
+def _read_pose_lines(path: Path | str, confidence: bool, names: str) -> tuple[dict[str, np.ndarray], dict[str, float]]:
     poses: dict[str, np.ndarray] = {}
+    scores: dict[str, float] = {}
+    n_fields = None
     for lineno, parts in io.data_lines(path):
         where = f"line {lineno}"
-        if len(parts) != 8:
-            raise DataError(path, f"{where}: expected 'name qw qx qy qz tx ty tz', got {len(parts)} fields")
+        if len(parts) != 8 and not (confidence and len(parts) == 9):
+            expected = "'name qw qx qy qz tx ty tz [confidence]'" if confidence else "'name qw qx qy qz tx ty tz'"
+            raise DataError(path, f"{where}: expected {expected}, got {len(parts)} fields")
+        if n_fields is not None and len(parts) != n_fields:
+            raise DataError(
+                path, f"{where}: {len(parts)} fields after lines of {n_fields}: give a confidence on every line or none"
+            )
+        n_fields = len(parts)
         name = parts[0]
+        if names == "hloc":
+            mapped = hloc_name(name)
+            if mapped is None:
+                raise DataError(path, f"{where}: '{name}' is not an hloc image name like 'query/color/000012.png'")
+            name = mapped
         try:
             vals = np.array([float(v) for v in parts[1:]])
         except ValueError:
@@ -54,8 +99,10 @@ def read_results(path: Path | str) -> dict[str, np.ndarray]:
             raise DataError(path, f"{where}: quaternion of '{name}' is not unit (norm {qn:.4f})")
         if name in poses:
             raise DataError(path, f"{where}: duplicate query name '{name}'")
-        poses[name] = geometry.invert(geometry.qt_to_pose(vals[:4], vals[4:]))
-    return poses
+        poses[name] = geometry.invert(geometry.qt_to_pose(vals[:4], vals[4:7]))
+        if len(vals) == 8:
+            scores[name] = float(vals[7])
+    return poses, scores
 
 
 def write_tum(path: Path | str, poses_wc: dict[str, np.ndarray], timestamps: dict[str, float]) -> None:

@@ -22,6 +22,8 @@ import importlib
 import logging
 import os
 import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
@@ -31,7 +33,7 @@ import numpy as np
 import pandas as pd
 from tqdm import tqdm
 
-from openreloc_bench import geometry
+from openreloc_bench import bars, geometry
 from openreloc_bench.data import io, paths
 from openreloc_bench.data.results import write_results, write_tum
 from openreloc_bench.data.scene import Scene
@@ -94,6 +96,8 @@ class MapJob:
     """Limit on building the map, in seconds; 0 = none (built in the job's own process)."""
     provenance: dict[str, Any]
     plugins: list[str]
+    n_frames: int = 0
+    """Mapping frames (the progress bar counts them)."""
 
 
 @dataclass
@@ -110,6 +114,8 @@ class QueryJob:
     """Limit on loading the map in the query worker, in seconds (used with ``timeout_s``)."""
     provenance: dict[str, Any]
     plugins: list[str]
+    n_queries: int = 0
+    """Queries of the split (the progress bar counts them)."""
 
     @property
     def marker(self) -> Path:
@@ -238,14 +244,28 @@ class QueryServer:
                 self._stop()
 
 
+_query_done: Callable[[], None] | None = None
+"""Called after every query this process localizes: the inline executor's progress bar (see
+:func:`_progress`); None in worker processes, whose jobs the bar counts when they finish."""
+
+
+def _localized(outcome: Outcome) -> Outcome:
+    if _query_done is not None:
+        _query_done()
+    return outcome
+
+
 def _localize_all(job: QueryJob) -> tuple[SceneSequence, dict[str, Outcome], float]:
     if job.timeout_s <= 0:
         method, seq, load_s = _load_method(job)
-        return seq, {n: localize_one(method, query_frame(seq, i, job.track)) for i, n in enumerate(seq.names)}, load_s
+        outcomes = {
+            n: _localized(localize_one(method, query_frame(seq, i, job.track))) for i, n in enumerate(seq.names)
+        }
+        return seq, outcomes, load_s
     seq = Scene(job.scene_dir).sequence(job.split)
     server = QueryServer(job)
     try:
-        outcomes = {n: server.ask(i, n) for i, n in enumerate(seq.names)}
+        outcomes = {n: _localized(server.ask(i, n)) for i, n in enumerate(seq.names)}
     finally:
         server.close()
     return seq, outcomes, server.load_s
@@ -297,7 +317,8 @@ def _build_map(job: MapJob) -> dict[str, Any]:
         paths.check_output(job.map_dir, [job.scene_dir], "map directory")
         mapping = Scene(job.scene_dir).sequence("mapping")
         mapping.load_instances = job.track == "oracle-mask"
-        return cache.build_map_cached(method, mapping, job.map_dir, job.spec_hash, job.provenance)
+        with bars.quiet():  # the evaluation's bar counts the frames
+            return cache.build_map_cached(method, mapping, job.map_dir, job.spec_hash, job.provenance)
     except Exception as e:  # noqa: BLE001 -- reported per job; other jobs go on
         log.debug("map job failed", exc_info=True)
         return {"error": f"{type(e).__name__}: {e}"}
@@ -399,6 +420,10 @@ class EvalReport:
     jobs_skipped: int = 0
     jobs_stale: int = 0
     """Finished jobs ``--resume`` found but recomputed: they were run with other settings or scenes."""
+    queries: int = 0
+    """Queries localized by the jobs run (not those resumed)."""
+    queries_localized: int = 0
+    """Of these, the ones with an estimate."""
     errors: list[str] = field(default_factory=list)
     wall_s: float = 0.0
 
@@ -415,14 +440,15 @@ def plan(cfg: EvalConfig) -> tuple[list[MapJob], list[QueryJob]]:
         raise ConfigError(f"unknown track '{cfg.track}' (known: {', '.join(TRACKS)})")
     import_plugins(cfg.plugins)
     commit = cache.git_commit()
-    scenes = {}
+    scenes, sizes = {}, {}
     for name in cfg.scenes:
         scene = Scene(cfg.data / paths.plain_name(name, "scene"))
         avail = scene.splits()
         for split in ["mapping", *cfg.splits]:
             if split not in avail:
                 raise DataError(scene.root, f"scene has no split '{split}' (available: {', '.join(avail)})")
-            scene.sequence(split)  # an incomplete or inconsistent scene fails here, before any work
+            # an incomplete or inconsistent scene fails here, before any work
+            sizes[name, split] = len(scene.sequence(split))
         if cfg.track == "oracle-mask":
             for split in cfg.splits:
                 if not (scene.root / split / "instance").is_dir():
@@ -452,7 +478,11 @@ def plan(cfg: EvalConfig) -> tuple[list[MapJob], list[QueryJob]]:
                 "spec_hash": spec,
                 "git_commit": commit,
             }
-            map_jobs.append(MapJob(run, scene.root, map_dir, spec, masks, cfg.map_timeout_s, prov, cfg.plugins))
+            map_jobs.append(
+                MapJob(
+                    run, scene.root, map_dir, spec, masks, cfg.map_timeout_s, prov, cfg.plugins, sizes[name, "mapping"]
+                )
+            )
             for split in cfg.splits:
                 out_dir = paths.confined(
                     cfg.out / "runs" / run.label / cfg.track / name, cfg.out / "runs", "run folder"
@@ -469,6 +499,7 @@ def plan(cfg: EvalConfig) -> tuple[list[MapJob], list[QueryJob]]:
                         cfg.map_timeout_s,
                         prov,
                         cfg.plugins,
+                        sizes[name, split],
                     )
                 )
     return map_jobs, query_jobs
@@ -534,14 +565,15 @@ def _evaluate(cfg: EvalConfig, map_jobs: list[MapJob], query_jobs: list[QueryJob
     report.maps_cached = len(unique) - len(todo_maps)
     executor = make_executor(cfg.executor, cfg.workers, cfg.ray_address)
     failed_maps: dict[Path, str] = {}
-    for job, rec in tqdm(
-        executor.map(run_map_job, todo_maps), total=len(todo_maps), desc="maps", disable=not todo_maps
-    ):
-        if "error" in rec:
-            failed_maps[job.map_dir] = rec["error"]
-            report.errors.append(f"map {job.run.label}/{job.scene_dir.name}: {rec['error']}")
-        else:
-            report.maps_built += 1
+    with _progress("maps", "frame", sum(j.n_frames for j in todo_maps)) as bar:
+        for job, rec in executor.map(run_map_job, todo_maps):
+            bar.update(job.n_frames)
+            if "error" in rec:
+                failed_maps[job.map_dir] = rec["error"]
+                report.errors.append(f"map {job.run.label}/{job.scene_dir.name}: {rec['error']}")
+                bar.set_postfix(errors=len(report.errors))
+            else:
+                report.maps_built += 1
     todo = []
     for j in query_jobs:
         if j.map_dir in failed_maps:
@@ -552,13 +584,45 @@ def _evaluate(cfg: EvalConfig, map_jobs: list[MapJob], query_jobs: list[QueryJob
         if cfg.resume and j.marker.is_file():
             report.jobs_stale += 1
         todo.append(j)
-    for job, rec in tqdm(executor.map(run_query_job, todo), total=len(todo), desc="queries", disable=not todo):
-        if "error" in rec:
-            report.errors.append(f"{job.run.label}/{job.scene_dir.name}/{job.split}: {rec['error']}")
-        else:
-            report.jobs_run += 1
+    with _progress("queries", "query", sum(j.n_queries for j in todo), per_item=True) as bar:
+        for job, rec in executor.map(run_query_job, todo):
+            bar.update(job.n_queries - bar.ticked)  # the queries of a job run in another process, at once
+            bar.ticked = 0
+            if "error" in rec:
+                report.errors.append(f"{job.run.label}/{job.scene_dir.name}/{job.split}: {rec['error']}")
+                bar.set_postfix(errors=len(report.errors))
+            else:
+                report.jobs_run += 1
+                report.queries += rec["n_queries"]
+                report.queries_localized += rec["n_success"]
     report.wall_s = time.perf_counter() - t0
     return report
+
+
+class _Bar(tqdm):
+    ticked = 0
+    """Queries of the current job counted already, one by one, in this process."""
+
+
+@contextmanager
+def _progress(desc: str, unit: str, total: int, per_item: bool = False) -> Iterator[_Bar]:
+    """One bar counting ``total`` frames or queries, with rate and ETA (none when there is nothing to do).
+
+    With ``per_item`` the queries a job localizes in this process (inline executor) tick the bar one by
+    one; jobs run elsewhere advance it by their size when they finish.
+    """
+    global _query_done
+    with _Bar(total=total, desc=desc, unit=unit, disable=not total, dynamic_ncols=True) as bar:
+
+        def tick() -> None:
+            bar.ticked += 1
+            bar.update()
+
+        _query_done = tick if per_item else None
+        try:
+            yield bar
+        finally:
+            _query_done = None
 
 
 def load_run_queries(out: Path) -> pd.DataFrame:

@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 
 from openreloc_bench import geometry
-from openreloc_bench.data.results import read_results
+from openreloc_bench.data.results import hloc_name, read_submission
 from openreloc_bench.data.types import SceneSequence
 from openreloc_bench.errors import DataError
 
@@ -31,6 +31,8 @@ class Outcome:
     T_wc: np.ndarray | None
     runtime_s: float = float("nan")
     reason: str = ""
+    confidence: float = float("nan")
+    """The submission's confidence in the estimate (map-free's column), NaN where none was given."""
 
 
 def score_split(seq: SceneSequence, outcomes: dict[str, Outcome]) -> pd.DataFrame:
@@ -68,47 +70,55 @@ def score_split(seq: SceneSequence, outcomes: dict[str, Outcome]) -> pd.DataFram
     })  # fmt: skip
 
 
-def outcomes_from_file(path: Path) -> dict[str, Outcome]:
-    """Estimates of a pose file as outcomes (read_results rejects NaNs, duplicates, non-unit quaternions)."""
-    return {n: Outcome(n, T) for n, T in read_results(path).items()}
+MAPFREE_PREFIX = "pose_"
+"""Map-free submissions name a scene's file ``pose_<scene>.txt``."""
 
 
 def submission_outcomes(
-    submission: Path, scene: str, seq: SceneSequence, scene_splits: list[str]
+    submission: Path, scene: str, seq: SceneSequence, scene_splits: list[str], names: str = "benchmark"
 ) -> dict[str, Outcome] | None:
-    """The estimates a map-free-style submission holds for one split of one scene, or None if it has no file.
+    """The estimates a submission holds for one split of one scene, or None if it has no file.
 
-    Accepted layouts: ``<scene>/<split>.txt`` (names ``<split>/<id>``) or one ``<scene>.txt`` with the
-    names of every split (``scene_splits``; only the names of ``seq.split`` are taken from it). A name
-    that is not a query of the scene is an error, never silently dropped: a typo in the split part
-    (``Query/000001``) would otherwise lose every estimate.
+    Accepted layouts: ``<scene>/<split>.txt`` (names ``<split>/<id>``), or one ``<scene>.txt`` or
+    ``pose_<scene>.txt`` (map-free) with the names of every split (``scene_splits``; only the names of
+    ``seq.split`` are taken from it). Lines may carry map-free's confidence; ``names="hloc"`` maps hloc
+    image names (``query/color/000012.png``). A name that is not a query of the scene is an error,
+    never silently dropped: a typo in the split part (``Query/000001``) would otherwise lose every estimate.
     """
     per_split = submission / scene / f"{seq.split}.txt"
-    per_scene = submission / f"{scene}.txt"
-    if per_split.is_file() and per_scene.is_file():
-        raise DataError(submission, f"holds both {per_scene.name} and {scene}/{per_split.name}: keep one layout")
+    per_scene = [p for p in (submission / f"{scene}.txt", submission / f"{MAPFREE_PREFIX}{scene}.txt") if p.is_file()]
     if per_split.is_file():
-        path, found = per_split, outcomes_from_file(per_split)
-    elif per_scene.is_file():
-        path, found = per_scene, outcomes_from_file(per_scene)
+        per_scene.append(per_split)
+    if len(per_scene) > 1:
+        files = " and ".join(str(p.relative_to(submission)) for p in per_scene)
+        raise DataError(submission, f"holds both {files}: keep one layout")
+    if not per_scene:
+        return None
+    path = per_scene[0]
+    poses, confidence = read_submission(path, names)
+    found = {n: Outcome(n, T, confidence=confidence.get(n, float("nan"))) for n, T in poses.items()}
+    if path != per_split:
         foreign = sorted(n for n in found if n.split("/", 1)[0] not in scene_splits)
         if foreign:
             raise DataError(
                 path,
                 f"{len(foreign)} name(s) name no split of scene '{scene}', e.g. '{foreign[0]}' "
-                f"(splits: {', '.join(scene_splits)}; expected names like '{seq.names[0]}')",
+                f"(splits: {', '.join(scene_splits)}; expected names like '{seq.names[0]}'){_names_hint(foreign[0], names)}",
             )
         found = {n: o for n, o in found.items() if n.split("/", 1)[0] == seq.split}
-    else:
-        return None
     unknown = sorted(set(found) - set(seq.names))
     if unknown:
         raise DataError(
             path,
             f"{len(unknown)} name(s) are not queries of scene '{scene}', e.g. '{unknown[0]}' "
-            f"(expected '<split>/<frame id>' like '{seq.names[0]}')",
+            f"(expected '<split>/<frame id>' like '{seq.names[0]}'){_names_hint(unknown[0], names)}",
         )
     return found
+
+
+def _names_hint(name: str, names: str) -> str:
+    """A pointer to ``--names hloc`` when a benchmark-style file holds an hloc image name."""
+    return "; hloc image names need --names hloc" if names == "benchmark" and hloc_name(name) else ""
 
 
 def submission_scenes(submission: Path, data: Path) -> list[str]:
@@ -117,10 +127,12 @@ def submission_scenes(submission: Path, data: Path) -> list[str]:
     if not submission.is_dir():
         raise DataError(submission, "submission directory not found")
     entries = [p for p in submission.iterdir() if not p.name.startswith(".")]
-    names = {p.stem: p.name for p in entries if p.is_file() and p.suffix == ".txt"}
+    names = {_scene_of_file(p.stem, data): p.name for p in entries if p.is_file() and p.suffix == ".txt"}
     names.update({p.name: f"{p.name}/" for p in entries if p.is_dir()})
     if not names:
-        raise DataError(submission, f"no '<scene>.txt' or '<scene>/<split>.txt' naming a scene under {data}")
+        raise DataError(
+            submission, f"no '<scene>.txt', 'pose_<scene>.txt' or '<scene>/<split>.txt' naming a scene under {data}"
+        )
     unknown = sorted(f for n, f in names.items() if not (data / n / "scene.json").is_file())
     if unknown:
         raise DataError(
@@ -131,10 +143,25 @@ def submission_scenes(submission: Path, data: Path) -> list[str]:
     return sorted(names)
 
 
+def _scene_of_file(stem: str, data: Path) -> str:
+    """The scene a ``<stem>.txt`` file names: ``<scene>`` or map-free's ``pose_<scene>``."""
+    bare = stem.removeprefix(MAPFREE_PREFIX)
+    if bare != stem and not (data / stem / "scene.json").is_file() and (data / bare / "scene.json").is_file():
+        return bare
+    return stem
+
+
 def score_submission(
-    submission: Path, data: Path, scenes: list[str], splits: list[str], method: str, track: str
+    submission: Path,
+    data: Path,
+    scenes: list[str],
+    splits: list[str],
+    method: str,
+    track: str,
+    names: str = "benchmark",
 ) -> pd.DataFrame:
-    """Per-query rows (with the runner's provenance columns) for pose files produced elsewhere.
+    """Per-query rows (with the runner's provenance columns and the submission's ``confidence``) for
+    pose files produced elsewhere.
 
     A scene or split without a file counts every query as failed ("missing"), as does a query
     absent from its file; malformed files (duplicates, NaN, non-unit quaternions) are errors.
@@ -149,8 +176,9 @@ def score_submission(
         scene = Scene(data / name)
         for split in splits:
             seq = scene.sequence(split)
-            outcomes = submission_outcomes(submission, name, seq, scene.splits()) or {}
+            outcomes = submission_outcomes(submission, name, seq, scene.splits(), names) or {}
             df = score_split(seq, outcomes)
+            df["confidence"] = [outcomes[n].confidence if n in outcomes else float("nan") for n in df["query"]]
             meta = {
                 "method": method,
                 "track": track,

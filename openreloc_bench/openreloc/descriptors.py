@@ -11,8 +11,8 @@ from collections import defaultdict
 from dataclasses import dataclass
 
 import numpy as np
-from tqdm import tqdm
 
+from openreloc_bench.bars import tqdm
 from openreloc_bench.config import check_ranges
 from openreloc_bench.data.types import SceneSequence
 from openreloc_bench.openreloc.mapping import read_color

@@ -33,9 +33,9 @@ import open3d.core as o3c
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
-from tqdm import tqdm
 
 from openreloc_bench import geometry
+from openreloc_bench.bars import tqdm
 from openreloc_bench.config import check_ranges
 from openreloc_bench.data import io
 from openreloc_bench.data.scene import ObjectInfo

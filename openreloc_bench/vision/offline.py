@@ -93,6 +93,9 @@ def uint8_batch_to_tensor(arr: np.ndarray) -> torch.Tensor:
 def _sentence_model(model_id: str) -> Any:
     """Load a sentence-transformers model once per process (encoders, describers and tests share it)."""
     from sentence_transformers import SentenceTransformer
+    from transformers.utils import logging as hf_logging
+
+    hf_logging.disable_progress_bar()  # no weight-loading bar on every map, localize and eval worker
 
     try:
         if model_id == MINILM_PACKAGE:

@@ -75,6 +75,23 @@ def test_eval_prints_the_spread_over_seeds(data: Path, tmp_path: Path, capsys: p
 
 
 @pytest.mark.parametrize(
+    "extra", [["--workers", "1", "--map-timeout", "0"], ["--workers", "1"], ["--workers", "2"]]
+)  # maps built in this process, in a child process (the map time limit), in pool workers
+def test_progress_counts_queries_and_frames_and_the_summary_ends(
+    data: Path, tmp_path: Path, capfd: pytest.CaptureFixture, extra: list[str]
+) -> None:
+    args = ["--methods", "test-oracle,nearest-frame", "--splits", "query,query_light1", "--timeout", "0", *extra]
+    assert main(eval_args(data, tmp_path / "r", *args)) == 0
+    out, err = capfd.readouterr()  # the workers' output too
+    # one bar each: 2 methods x 2 scenes x 4 mapping frames, 2 methods x 2 scenes x 2 splits x 3 queries
+    assert err.count("maps:   0%") == 1 and "| 16/16 [" in err and "frame/s]" in err
+    assert err.count("queries:   0%") == 1 and "| 24/24 [" in err and "query/s]" in err and "<" in err
+    assert "nearest-frame map" not in err  # the method's own bar over the same frames stays off
+    last = out.strip().splitlines()[-1]
+    assert last.startswith("maps: 4 built, 0 cached; jobs: 8 run, 0 resumed; queries: 24 of 24 localized; 0 errors")
+
+
+@pytest.mark.parametrize(
     "extra, message",
     [
         (["--methods", "nope"], "unknown method 'nope'"),

@@ -12,6 +12,7 @@ import pytest
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "harness"))
 from harness_test_methods import make_scene, perturb  # noqa: E402
 
+from openreloc_bench import geometry  # noqa: E402
 from openreloc_bench.cli import main  # noqa: E402
 from openreloc_bench.data.results import RESULTS_HEADER, write_results  # noqa: E402
 from openreloc_bench.data.scene import Scene  # noqa: E402
@@ -58,7 +59,7 @@ def test_scores_both_layouts_and_counts_missing_queries_as_failures(
         ("query/000000 1 0 0 0 nan 0 0", "NaN"),
         ("query/000000 0.5 0 0 0 0 0 0", "not unit"),
         ("query/999999 1 0 0 0 0 0 0", "not queries of scene 's1'"),
-        ("query/000000 1 0 0", "expected 'name qw qx qy qz tx ty tz'"),
+        ("query/000000 1 0 0", "expected 'name qw qx qy qz tx ty tz [confidence]'"),
     ],
 )
 def test_malformed_pose_files_are_one_line_errors(data: Path, tmp_path: Path, capsys, line: str, message: str) -> None:
@@ -71,3 +72,62 @@ def test_malformed_pose_files_are_one_line_errors(data: Path, tmp_path: Path, ca
 def test_submission_without_any_scene_file(data: Path, tmp_path: Path, capsys) -> None:
     assert main(["score", str(tmp_path), "--data", str(data)]) == 2
     assert "no '<scene>.txt'" in capsys.readouterr().err
+
+
+def mapfree_lines(est: dict[str, np.ndarray], name=lambda n: n, confidence: bool = True) -> str:
+    """Lines of a map-free submission: ``name qw qx qy qz tx ty tz confidence`` (T_cw)."""
+    lines = []
+    for i, (n, T) in enumerate(sorted(est.items())):
+        q, t = geometry.pose_to_qt(geometry.invert(T))
+        conf = f" {100.0 * (i + 1)}" if confidence else ""
+        lines.append(f"{name(n)} " + " ".join(f"{v:.10g}" for v in (*q, *t)) + conf)
+    return "\n".join(lines) + "\n"
+
+
+def test_scores_a_mapfree_submission_and_keeps_its_confidence(data: Path, tmp_path: Path) -> None:
+    sub = tmp_path / "mapfree"
+    sub.mkdir()
+    est = estimates(data, "query", 0.3)
+    del est["query/000002"]
+    (sub / "pose_s1.txt").write_text(mapfree_lines(est))
+    assert main(["score", str(sub), "--data", str(data), "--out", str(tmp_path / "scores")]) == 0
+    queries = pd.read_csv(tmp_path / "scores" / "tables" / "queries.csv").set_index("query")
+    assert queries["confidence"].to_dict() == pytest.approx(
+        {"query/000000": 100.0, "query/000001": 200.0, "query/000002": np.nan, "query/000003": 300.0}, nan_ok=True
+    )
+    assert queries.loc["query/000000", "t_err_m"] == pytest.approx(0.3)
+    assert set(queries["scene"]) == {"s1"}
+
+
+def test_scores_hloc_image_names_when_asked(data: Path, tmp_path: Path, capsys) -> None:
+    sub = tmp_path / "hloc"
+    sub.mkdir()
+    est = estimates(data, "query", 0.1)
+    (sub / "s1.txt").write_text(mapfree_lines(est, lambda n: n.replace("/", "/color/") + ".png", confidence=False))
+    assert main(["score", str(sub), "--data", str(data), "--out", str(tmp_path / "plain")]) == 2
+    assert "hloc image names need --names hloc" in capsys.readouterr().err
+    assert main(["score", str(sub), "--data", str(data), "--names", "hloc", "--out", str(tmp_path / "s")]) == 0
+    suite = pd.read_csv(tmp_path / "s" / "tables" / "suite.csv")
+    assert suite.loc[0, "recall_25cm"] == 100.0 and suite.loc[0, "n_queries"] == 4
+
+
+@pytest.mark.parametrize(
+    "files, argv, message",
+    [
+        ({"s1.txt": "query/000000 1 0 0 0 0 0 0", "pose_s1.txt": ""}, [], "keep one layout"),
+        ({"s1.txt": "query/000000 1 0 0 0 0 0 0 0.5\nquery/000001 1 0 0 0 0 0 0"}, [], "confidence on every line"),
+        ({"s1.txt": "query/000000 1 0 0 0 0 0 0"}, ["--names", "hloc"], "not an hloc image name"),
+        ({"s1.txt": "query/color/000000.png 1 0 0 0 0 0 0\nquery/color/000000.jpg 1 0 0 0 0 0 0"},
+         ["--names", "hloc"], "duplicate query name 'query/000000'"),
+        ({"s1.txt": "query/000000 1 0 0 0 0 0 0 0.5 1"}, [], "expected 'name qw qx qy qz tx ty tz [confidence]'"),
+        ({"pose_s9.txt": "query/000000 1 0 0 0 0 0 0"}, [], "pose_s9.txt: names no scene"),
+    ],
+)  # fmt: skip
+def test_other_formats_still_fail_loudly(data: Path, tmp_path: Path, capsys, files, argv, message) -> None:
+    sub = tmp_path / "sub"
+    sub.mkdir()
+    for fname, text in files.items():
+        (sub / fname).write_text(text + "\n")
+    assert main(["score", str(sub), "--data", str(data), "--out", str(tmp_path / "o"), *argv]) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and len(err.splitlines()) == 1

@@ -5,7 +5,14 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from openreloc_bench import geometry
-from openreloc_bench.data.results import read_results, read_tum_trajectory, write_results, write_tum
+from openreloc_bench.data.results import (
+    hloc_name,
+    read_results,
+    read_submission,
+    read_tum_trajectory,
+    write_results,
+    write_tum,
+)
 from openreloc_bench.errors import DataError
 
 
@@ -72,3 +79,15 @@ def test_duplicate_names_rejected(tmp_path: Path):
     p.write_text("q/1 1 0 0 0 0 0 0\nq/1 1 0 0 0 1 0 0\n")
     with pytest.raises(DataError, match="duplicate query name 'q/1'"):
         read_results(p)
+
+
+def test_read_submission_takes_confidence_and_hloc_names(tmp_path: Path):
+    p = tmp_path / "sub.txt"
+    p.write_text("query/color/000012.png 1 0 0 0 1 2 3 0.75\nquery/color/7.jpg 1 0 0 0 0 0 0 2\n")
+    poses, confidence = read_submission(p, names="hloc")
+    assert confidence == {"query/000012": 0.75, "query/7": 2.0}
+    np.testing.assert_allclose(poses["query/000012"][:3, 3], [-1, -2, -3])  # T_cw's inverse
+    assert hloc_name("query_light1/color/000003.png") == "query_light1/000003"
+    assert hloc_name("query/000003") is None and hloc_name("query/depth/000003.png") is None
+    with pytest.raises(DataError, match="expected 'name qw qx qy qz tx ty tz', got 9 fields"):
+        read_results(p)  # the benchmark's own files have no confidence column

@@ -169,3 +169,21 @@ def test_bad_input_is_rejected_before_any_work(
     with pytest.raises(error, match=match):
         runner.evaluate(c)
     assert not (tmp_path / "maps").exists()
+
+
+@pytest.mark.parametrize(("timeout_s", "workers"), [(0.0, 1), (30.0, 1), (0.0, 2)])
+def test_query_bar_ticks_per_query_inline_and_per_job_in_workers(
+    data_dir: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, timeout_s: float, workers: int
+) -> None:
+    steps: list[tuple[str, int]] = []
+    update = runner._Bar.update
+    monkeypatch.setattr(runner._Bar, "update", lambda bar, n=1: (steps.append((bar.desc, n)), update(bar, n))[1])
+    runs = [MethodRun("test-oracle", "test-oracle")]
+    report = runner.evaluate(cfg(data_dir, tmp_path, runs, timeout_s=timeout_s, workers=workers))
+    assert report.errors == [] and (report.queries, report.queries_localized) == (6, 6)
+    queries = [n for desc, n in steps if desc == "queries" and n]
+    assert queries == ([1] * 6 if workers == 1 else [3, 3])  # two scenes of three queries
+    assert sum(n for desc, n in steps if desc == "maps") == sum(
+        len(list((data_dir / s / "mapping" / "pose").iterdir())) for s in ("sA", "sB")
+    )
+    assert runner._query_done is None

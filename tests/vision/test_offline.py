@@ -1,6 +1,8 @@
 from __future__ import annotations
 
 import json
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -92,3 +94,9 @@ def test_config_names_only_weights_passed_in(offline, tmp_path: Path) -> None:
 def test_missing_weights_directory(tmp_path: Path) -> None:
     with pytest.raises(ConfigError, match="train-encoder"):
         create_encoder("offline", weights=str(tmp_path / "none"))
+
+
+def test_loading_the_text_model_draws_no_progress_bar():
+    code = "from openreloc_bench.vision.offline import MINILM_PACKAGE, _sentence_model; _sentence_model(MINILM_PACKAGE)"
+    err = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stderr
+    assert "Loading weights" not in err and "it/s" not in err

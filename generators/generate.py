@@ -21,7 +21,7 @@ from tqdm import tqdm
 
 from generators.layout import Layout, build_layout
 from generators.render import Renderer, create_renderer
-from generators.spec import GENERATOR_VERSION, SceneSpec, SuiteSpec, spec_hash
+from generators.spec import GENERATOR_VERSION, SceneSpec, SuiteSpec, spec_hash, spec_record
 from generators.trajectories import mapping_trajectory, sample_queries
 from generators.variants import LIGHT_SPLITS, Lighting, light_variants, sample_displacements
 from openreloc_bench import config, geometry
@@ -39,7 +39,7 @@ def scene_info(spec: SceneSpec, layout: Layout, K: np.ndarray, counts: dict[str,
         "kind": spec.kind,
         "seed": spec.seed,
         "spec_hash": spec_hash(spec),
-        "spec": config.to_dict(spec),
+        "spec": spec_record(spec),
         "generator_version": GENERATOR_VERSION,
         "intrinsics": {"K": np.round(K, 9).tolist(), "width": spec.width, "height": spec.height, "fov_y": spec.fov_y},
         "footprint": [round(v, 5) for v in layout.footprint],
@@ -126,7 +126,7 @@ def generate_scene(spec: SceneSpec, out_dir: Path | str, resume: bool = False, p
     layout = build_layout(spec)
     K = geometry.intrinsics_from_fov(spec.width, spec.height, spec.fov_y)
     writer = SceneWriter(root)
-    renderer = create_renderer(layout, spec.backend, spec.width, spec.height)
+    renderer = create_renderer(layout, spec.renderer, spec.width, spec.height)
     try:
         try:
             mapping = mapping_trajectory(layout, spec)

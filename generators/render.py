@@ -138,6 +138,33 @@ def triplanar_uv(mesh_vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarr
     return verts, normals, uv.reshape(-1, 2), new_faces
 
 
+def part_surface(part: Part) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """What a renderer draws of a part: vertices, normals, texture coordinates, faces and the RGB
+    texture image. Coordinates follow MuJoCo's convention (v = 0 at the image's top row).
+
+    A procedural part gets flat faces, box-projected coordinates (:func:`triplanar_uv`) and its
+    material's tileable texture; an image-textured part (asset packs) keeps its shared vertices, its
+    smooth vertex normals and its own coordinates and image."""
+    if part.image is None:
+        v, n, uv, f = triplanar_uv(np.asarray(part.mesh.vertices), np.asarray(part.mesh.faces))
+        return v, n, uv, f, make_texture(part.material, part.rgb, part.texture_seed, TEXTURE_PX)
+    mesh = part.mesh
+    return (
+        np.asarray(mesh.vertices, dtype=np.float64),
+        np.asarray(mesh.vertex_normals, dtype=np.float64),
+        np.asarray(part.uv, dtype=np.float64) * [1.0, -1.0] + [0.0, 1.0],
+        np.asarray(mesh.faces, dtype=np.int32),
+        part.image,
+    )
+
+
+def scene_extent(layout: Layout) -> float:
+    """Diagonal of the scene's bounding box plus 1 m: the scale of the depth range."""
+    lo = np.min([i.aabb[0] for i in layout.instances], axis=0)
+    hi = np.max([i.aabb[1] for i in layout.instances], axis=0)
+    return float(np.linalg.norm(hi - lo)) + 1.0
+
+
 def msh_bytes(vertices: np.ndarray, normals: np.ndarray, uv: np.ndarray, faces: np.ndarray) -> bytes:
     """MuJoCo's binary mesh format: 4 int32 counts, float32 vertices/normals/texcoords, int32 faces."""
     header = struct.pack("<4i", len(vertices), len(normals), len(uv), len(faces))
@@ -153,14 +180,23 @@ def _texture_keys(parts: list[Part]) -> Callable[[Part], tuple]:
     multi-floor house) folds the seeds of each (material, colour) into the most variants that fit;
     scenes within the limit render exactly as before."""
     seeds: dict[tuple, set[int]] = {}
+    images = {id(p.image) for p in parts if p.image is not None}  # an image part is its own material
     for p in parts:
-        seeds.setdefault(_appearance(p), set()).add(int(p.texture_seed))
-    if sum(map(len, seeds.values())) <= MAX_MATERIALS:
-        return lambda p: (*_appearance(p), int(p.texture_seed))
+        if p.image is None:
+            seeds.setdefault(_appearance(p), set()).add(int(p.texture_seed))
+    budget = MAX_MATERIALS - len(images)
+
+    def key(p: Part, variants: int | None) -> tuple:
+        if p.image is not None:
+            return ("image", id(p.image))
+        return (*_appearance(p), int(p.texture_seed) if variants is None else int(p.texture_seed) % variants)
+
+    if sum(map(len, seeds.values())) <= budget:
+        return lambda p: key(p, None)
     # the count is not monotone in the number of variants (seed % v), so try them from the largest down
     for variants in range(max(map(len, seeds.values())), 0, -1):
-        if sum(len({s % variants for s in group}) for group in seeds.values()) <= MAX_MATERIALS:
-            return lambda p, v=variants: (*_appearance(p), int(p.texture_seed) % v)
+        if sum(len({s % variants for s in group}) for group in seeds.values()) <= budget:
+            return lambda p, v=variants: key(p, v)
     raise ConfigError(f"the scene has more than {MAX_MATERIALS} distinct (material, colour) pairs, MuJoCo's limit")
 
 
@@ -179,7 +215,7 @@ def build_mjcf(layout: Layout, max_width: int, max_height: int) -> tuple[str, di
     geom_instance: list[int] = []
     lo = np.min([i.aabb[0] for i in layout.instances], axis=0)
     hi = np.max([i.aabb[1] for i in layout.instances], axis=0)
-    extent = float(np.linalg.norm(hi - lo)) + 1.0
+    extent = scene_extent(layout)
     texture_key = _texture_keys([p for inst in layout.instances for p in inst.parts])
     for inst in layout.instances:
         T = inst.transform
@@ -187,20 +223,19 @@ def build_mjcf(layout: Layout, max_width: int, max_height: int) -> tuple[str, di
         pos = T[:3, 3]
         for part in inst.parts:
             key = texture_key(part)
+            mid = (id(part.mesh), id(part.uv))  # identical copies share Part meshes: one mesh asset each
+            if key not in tex_names or mid not in mesh_cache:
+                v, n, uv, f, image = part_surface(part)
             if key not in tex_names:
                 name = f"t{len(tex_names)}"
                 tex_names[key] = name
-                assets[f"{name}.png"] = io.encode_png(
-                    make_texture(part.material, part.rgb, part.texture_seed, TEXTURE_PX)
-                )
+                assets[f"{name}.png"] = io.encode_png(image)
                 spec = 0.5 if part.material in ("metal", "glass", "ceramic") else 0.15
                 asset_xml.append(f'<texture name="{name}" type="2d" file="{name}.png"/>')
                 asset_xml.append(f'<material name="m{name}" texture="{name}" specular="{spec}" shininess="0.3"/>')
-            mid = id(part.mesh)  # identical copies share Part meshes: one mesh asset each
             if mid not in mesh_cache:
                 mname = f"g{len(mesh_cache)}"
                 mesh_cache[mid] = mname
-                v, n, uv, f = triplanar_uv(np.asarray(part.mesh.vertices), np.asarray(part.mesh.faces))
                 assets[f"{mname}.msh"] = msh_bytes(v, n, uv, f)
                 asset_xml.append(f'<mesh name="{mname}" file="{mname}.msh" inertia="shell"/>')
             geom_xml.append(
@@ -513,9 +548,11 @@ class MujocoRenderer(Renderer):
 
 
 def create_renderer(layout: Layout, backend: str = "mujoco", max_width: int = 640, max_height: int = 480) -> Renderer:
-    """Renderer for ``layout``; ``backend`` is 'mujoco' (default) or 'pyrender' (optional extra)."""
+    """Renderer for ``layout``; ``backend`` is 'mujoco' (default) or 'pyrender' (the optional extra)."""
     if backend == "mujoco":
         return MujocoRenderer(layout, max_width, max_height)
     if backend == "pyrender":
-        raise ConfigError("backend 'pyrender' is not available in this build; use 'mujoco'")
+        from generators.render_pyrender import PyrenderRenderer  # optional extra: imported on demand
+
+        return PyrenderRenderer(layout, max_width, max_height)
     raise ConfigError(f"unknown renderer backend '{backend}' (known: mujoco, pyrender)")

@@ -85,8 +85,9 @@ class PackManifest:
 _AXES = {"+x": (1, 0, 0), "-x": (-1, 0, 0), "+y": (0, 1, 0), "-y": (0, -1, 0), "+z": (0, 0, 1), "-z": (0, 0, -1)}
 
 
-def load_manifest(pack_dir: Path | str) -> PackManifest:
-    """Parse and check ``pack_dir/manifest.yaml``; a one-line ConfigError names the bad entry."""
+def read_manifest(pack_dir: Path | str) -> tuple[PackManifest, list[str]]:
+    """Parse ``pack_dir/manifest.yaml`` (ConfigError when it is missing or malformed) and list the
+    problems of its entries, one line each."""
     pack_dir = Path(pack_dir)
     path = pack_dir / MANIFEST
     if not path.is_file():
@@ -95,24 +96,33 @@ def load_manifest(pack_dir: Path | str) -> PackManifest:
         manifest = config.from_dict(PackManifest, config.load_yaml(path))
     except ConfigError as e:
         raise ConfigError(f"{path}: {e}") from None
-    if not manifest.assets:
-        raise ConfigError(f"{path}: 'assets' lists no mesh")
+    problems = [] if manifest.assets else [f"{path}: 'assets' lists no mesh"]
     for i, a in enumerate(manifest.assets):
         where = f"{path}: assets[{i}] ({a.file})"
         if a.placement not in PLACEMENTS:
-            raise ConfigError(f"{where}: unknown placement '{a.placement}' (known: {', '.join(PLACEMENTS)})")
+            problems.append(f"{where}: unknown placement '{a.placement}' (known: {', '.join(PLACEMENTS)})")
         if a.material not in MATERIALS:
-            raise ConfigError(f"{where}: unknown material '{a.material}' (known: {', '.join(MATERIALS)})")
+            problems.append(f"{where}: unknown material '{a.material}' (known: {', '.join(MATERIALS)})")
         if unknown := sorted(set(a.rooms) - set(ROOM_KINDS)):
-            raise ConfigError(f"{where}: unknown room kind '{unknown[0]}' (known: {', '.join(ROOM_KINDS)})")
+            problems.append(f"{where}: unknown room kind '{unknown[0]}' (known: {', '.join(ROOM_KINDS)})")
         if np.dot(_AXES[a.up], _AXES[a.front]) != 0:
-            raise ConfigError(f"{where}: 'up' ({a.up}) and 'front' ({a.front}) must be perpendicular")
+            problems.append(f"{where}: 'up' ({a.up}) and 'front' ({a.front}) must be perpendicular")
         if a.size < 0 or a.scale <= 0 or a.weight <= 0:
-            raise ConfigError(f"{where}: 'size' must be >= 0, 'scale' and 'weight' positive")
+            problems.append(f"{where}: 'size' must be >= 0, 'scale' and 'weight' positive")
         if Path(a.file).suffix.lower() not in MESH_SUFFIXES:
-            raise ConfigError(f"{where}: not a mesh file (known: {', '.join(MESH_SUFFIXES)})")
-        if Path(a.file).is_absolute() or ".." in Path(a.file).parts:
-            raise ConfigError(f"{where}: 'file' must be a path inside the pack")
+            problems.append(f"{where}: not a mesh file (known: {', '.join(MESH_SUFFIXES)})")
+        elif Path(a.file).is_absolute() or ".." in Path(a.file).parts:
+            problems.append(f"{where}: 'file' must be a path inside the pack")
+        elif not (pack_dir / a.file).is_file():
+            problems.append(f"{where}: missing file")
+    return manifest, problems
+
+
+def load_manifest(pack_dir: Path | str) -> PackManifest:
+    """The checked manifest of a pack; a one-line ConfigError names its first problem."""
+    manifest, problems = read_manifest(pack_dir)
+    if problems:
+        raise ConfigError(problems[0])
     return manifest
 
 
@@ -216,15 +226,12 @@ class AssetPack:
 
 
 def load_pack(pack_dir: Path | str) -> AssetPack:
-    """Load and normalise every mesh of the pack (ConfigError on a missing or unreadable file)."""
+    """Load and normalise every mesh of the pack (ConfigError on a manifest problem or unreadable file)."""
     pack_dir = Path(pack_dir)
     manifest = load_manifest(pack_dir)
     assets, problems = [], []
     for entry in manifest.assets:
-        path = pack_dir / entry.file
-        if not path.is_file():
-            raise ConfigError(f"asset pack {pack_dir}: missing file '{entry.file}'")
-        parts, issues = load_mesh_parts(path, entry)
+        parts, issues = load_mesh_parts(pack_dir / entry.file, entry)
         problems += issues
         top = max(float(p.mesh.bounds[1][2]) for p in parts)
         assets.append(
@@ -237,7 +244,7 @@ def load_pack(pack_dir: Path | str) -> AssetPack:
                 surface_heights=[top] if entry.surface else [],
             )
         )
-    placements = {}
+    placements: dict[str, str] = {}
     for entry in manifest.assets:
         if placements.setdefault(entry.category, entry.placement) != entry.placement:
             problems.append(f"{entry.file}: category '{entry.category}' has two placements")
@@ -247,15 +254,10 @@ def load_pack(pack_dir: Path | str) -> AssetPack:
 def validate_pack(pack_dir: Path | str) -> tuple[AssetPack | None, list[str]]:
     """The loaded pack (None when it cannot load) and its problems, one line each: a missing or
     unreadable file, a mesh without texture, an absurd size, an unknown placement..."""
-    pack_dir = Path(pack_dir)
     try:
-        manifest = load_manifest(pack_dir)
-    except ConfigError as e:
-        return None, [str(e)]
-    missing = [f"{a.file}: missing file" for a in manifest.assets if not (pack_dir / a.file).is_file()]
-    if missing:
-        return None, missing
-    try:
+        _, problems = read_manifest(pack_dir)
+        if problems:
+            return None, problems
         pack = load_pack(pack_dir)
     except ConfigError as e:
         return None, [str(e)]

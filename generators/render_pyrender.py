@@ -14,6 +14,7 @@ it destroys its own context but never terminates the EGL display, which MuJoCo's
 
 from __future__ import annotations
 
+import logging
 import os
 from collections.abc import Sequence
 
@@ -31,6 +32,7 @@ from generators.render import (
 from openreloc_bench import geometry
 from openreloc_bench.errors import ConfigError
 
+logging.getLogger("OpenGL.acceleratesupport").setLevel(logging.WARNING)  # "no OpenGL_accelerate": noise
 os.environ.setdefault("PYOPENGL_PLATFORM", "osmesa" if os.environ.get("MUJOCO_GL") == "osmesa" else "egl")
 try:
     import pyrender
@@ -82,7 +84,7 @@ class _Offscreen(pyrender.OffscreenRenderer):
 
             EGL.eglMakeCurrent(display, EGL.EGL_NO_SURFACE, EGL.EGL_NO_SURFACE, EGL.EGL_NO_CONTEXT)
             EGL.eglDestroyContext(display, self._platform._egl_context)
-            self._platform._egl_context = None
+            self._platform._egl_context = self._platform._egl_display = None  # its __del__ would terminate
         else:
             self._platform.delete_context()
         self._renderer = self._platform = None

@@ -54,8 +54,9 @@ def run(args: argparse.Namespace) -> int:
         print(line)
     if pack is not None:
         from generators.pack_gallery import write_gallery
+        from openreloc_bench.vision.vocabulary import noun
 
-        print(
-            f"{len(pack.assets)} assets, {len(pack.categories)} categories; gallery: {write_gallery(pack, gallery, args.backend)}"
-        )
+        out = write_gallery(pack, gallery, args.backend)
+        print(f"{len(pack.assets)} assets, {len(pack.categories)} categories; gallery: {out}")
+        print("describer nouns (describer_options: {extra_nouns: [...]}): " + ", ".join(map(noun, pack.categories)))
     return 1 if problems else 0

@@ -58,8 +58,8 @@ def main() -> None:
         with create_renderer(layout, backend, spec.width, spec.height) as r:
             print(f"{backend}: " + _render_fps(r, poses, K, spec.width, spec.height))
     t = time.perf_counter()
-    renderer = create_renderer(layout, spec.renderer, spec.width, spec.height)
-    print(f"model ({spec.renderer}): {time.perf_counter() - t:.1f} s, {len(mapping)} mapping poses")
+    renderer = create_renderer(layout, spec.backend, spec.width, spec.height)
+    print(f"model ({spec.backend}): {time.perf_counter() - t:.1f} s, {len(mapping)} mapping poses")
     print(_render_fps(renderer, poses, K, spec.width, spec.height))
     with tempfile.TemporaryDirectory() as tmp:
         t = time.perf_counter()

@@ -126,7 +126,7 @@ def generate_scene(spec: SceneSpec, out_dir: Path | str, resume: bool = False, p
     layout = build_layout(spec)
     K = geometry.intrinsics_from_fov(spec.width, spec.height, spec.fov_y)
     writer = SceneWriter(root)
-    renderer = create_renderer(layout, spec.renderer, spec.width, spec.height)
+    renderer = create_renderer(layout, spec.backend, spec.width, spec.height)
     try:
         try:
             mapping = mapping_trajectory(layout, spec)

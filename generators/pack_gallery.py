@@ -66,7 +66,7 @@ def render_asset(asset, backend: str) -> np.ndarray:
     return rgb
 
 
-def write_gallery(pack: AssetPack, out: Path | str, backend: str = "pyrender", columns: int = 4) -> Path:
+def write_gallery(pack: AssetPack, out: Path | str, backend: str = "mujoco", columns: int = 4) -> Path:
     """One labelled tile per asset in a grid PNG at ``out``; returns ``out``."""
     tiles = []
     for asset in pack.assets:

@@ -270,6 +270,79 @@ def build_mjcf(layout: Layout, max_width: int, max_height: int) -> tuple[str, di
     return xml, assets, geom_instance
 
 
+class Culler:
+    """Which drawables (geoms, nodes) cannot be seen from a camera: those outside the view frustum, and
+    those in rooms no line of sight reaches through doorways and stair openings (conservative: the image
+    is unchanged). Renderers without culling of their own pay per drawn object, so in a multi-room scene
+    this is most of the frame time."""
+
+    def __init__(self, layout: Layout, instance_ids: Sequence[int]):
+        """``instance_ids``: the instance of every drawable, in the order of the corners given to :meth:`hidden`."""
+        geom_instance = list(instance_ids)
+        names = [r.name for r in layout.rooms]
+        index = {n: k for k, n in enumerate(names)}
+        by_id = layout.by_id()
+        self._drawable_rooms = np.zeros((len(geom_instance), len(names)), dtype=bool)
+        for g, iid in enumerate(geom_instance):
+            inst = by_id[iid]
+            rooms = {inst.room, *inst.attributes.get("rooms", "").split(",")} - {"", None}
+            self._drawable_rooms[g, [index[n] for n in rooms]] = True
+            if not rooms:
+                self._drawable_rooms[g] = True
+        portals: list[tuple[int, int, np.ndarray]] = []
+        for d in layout.doors:
+            hx, hy = (DOOR_W / 2, WALL_T) if d.axis == 0 else (WALL_T, DOOR_W / 2)
+            lo, hi = d.centre + [-hx, -hy, 0.0], d.centre + [hx, hy, DOOR_H]
+            portals.append((index[d.rooms[0]], index[d.rooms[1]], _box_corners(lo, hi)))
+        for f, rect in layout.blocked:  # a stair rect on floor f is an opening in floor f + 1
+            centre = np.array([(rect[0] + rect[2]) / 2, (rect[1] + rect[3]) / 2])
+            below = [r for r in layout.rooms_on(f) if r.contains_xy(centre)]
+            above = [r for r in layout.rooms_on(f + 1) if r.contains_xy(centre)]
+            if (f + 1, rect) in layout.blocked and below and above:
+                z = layout.floor_z[f + 1]
+                portals.append(
+                    (
+                        index[below[0].name],
+                        index[above[0].name],
+                        _box_corners((rect[0], rect[1], z - 0.5), (rect[2], rect[3], z + 0.1)),
+                    )
+                )
+        self._portals = portals
+        self._rooms = layout.rooms
+        self._floor_z = np.asarray(layout.floor_z)
+
+    def _visible_rooms(self, T_wc: np.ndarray, tx: float, ty: float) -> np.ndarray | None:
+        """Rooms a line of sight can reach: the camera's room(s), then every room behind a chain of
+        portals that are each inside the view frustum (conservative). None = camera outside all rooms."""
+        cam = T_wc[:3, 3]
+        floor = int(np.clip(np.searchsorted(self._floor_z, cam[2] + 1e-6) - 1, 0, len(self._floor_z) - 1))
+        seen = {k for k, r in enumerate(self._rooms) if r.floor == floor and r.contains_xy(cam[:2], margin=-0.3)}
+        if not seen:
+            return None
+        if self._portals:
+            in_view = ~_outside_frustum(np.stack([c for _, _, c in self._portals]), T_wc, tx, ty)
+            grew = True
+            while grew:
+                grew = False
+                for (a, b, _), ok in zip(self._portals, in_view):
+                    if ok and (a in seen) != (b in seen):
+                        seen |= {a, b}
+                        grew = True
+        mask = np.zeros(len(self._rooms), dtype=bool)
+        mask[list(seen)] = True
+        return mask
+
+    def hidden(self, corners: np.ndarray, T_wc: np.ndarray, K: np.ndarray, width: int, height: int) -> np.ndarray:
+        """(G,) True for the drawables whose world box corners (G,8,3) cannot be seen."""
+        tx = 1.02 * (width / 2) / K[0, 0]
+        ty = 1.02 * (height / 2) / K[1, 1]
+        out = _outside_frustum(corners, T_wc, tx, ty)
+        rooms = self._visible_rooms(T_wc, tx, ty)
+        if rooms is not None:
+            out |= ~self._drawable_rooms[:, rooms].any(axis=1)
+        return out
+
+
 class MujocoRenderer(Renderer):
     """MuJoCo classic OpenGL renderer over EGL (OSMesa fallback)."""
 
@@ -291,7 +364,7 @@ class MujocoRenderer(Renderer):
             g: (self.model.geom_pos[g].copy(), self.model.geom_quat[g].copy()) for g in range(self.model.ngeom)
         }
         self._update_geom_corners()
-        self._init_portals(layout, geom_instance)
+        self._culler = Culler(layout, geom_instance)
         self._inst_T0 = {i.id: i.transform.copy() for i in layout.instances}
         self._light_pos = np.array([li.pos for li in layout.lights]).reshape(-1, 3)
         self._light_floor = np.array([li.floor for li in layout.lights], dtype=int)
@@ -352,74 +425,9 @@ class MujocoRenderer(Renderer):
         R = self.data.geom_xmat.reshape(-1, 3, 3)
         self._corners = np.einsum("gij,gkj->gki", R, local) + self.data.geom_xpos[:, None, :]
 
-    def _init_portals(self, layout: Layout, geom_instance: list[int]) -> None:
-        """Rooms of every geom, and the portals (doorways, stair openings) that join rooms."""
-        names = [r.name for r in layout.rooms]
-        index = {n: k for k, n in enumerate(names)}
-        by_id = layout.by_id()
-        self._geom_rooms = np.zeros((len(geom_instance), len(names)), dtype=bool)
-        for g, iid in enumerate(geom_instance):
-            inst = by_id[iid]
-            rooms = {inst.room, *inst.attributes.get("rooms", "").split(",")} - {"", None}
-            self._geom_rooms[g, [index[n] for n in rooms]] = True
-            if not rooms:
-                self._geom_rooms[g] = True
-        portals: list[tuple[int, int, np.ndarray]] = []
-        for d in layout.doors:
-            hx, hy = (DOOR_W / 2, WALL_T) if d.axis == 0 else (WALL_T, DOOR_W / 2)
-            lo, hi = d.centre + [-hx, -hy, 0.0], d.centre + [hx, hy, DOOR_H]
-            portals.append((index[d.rooms[0]], index[d.rooms[1]], _box_corners(lo, hi)))
-        for f, rect in layout.blocked:  # a stair rect on floor f is an opening in floor f + 1
-            centre = np.array([(rect[0] + rect[2]) / 2, (rect[1] + rect[3]) / 2])
-            below = [r for r in layout.rooms_on(f) if r.contains_xy(centre)]
-            above = [r for r in layout.rooms_on(f + 1) if r.contains_xy(centre)]
-            if (f + 1, rect) in layout.blocked and below and above:
-                z = layout.floor_z[f + 1]
-                portals.append(
-                    (
-                        index[below[0].name],
-                        index[above[0].name],
-                        _box_corners((rect[0], rect[1], z - 0.5), (rect[2], rect[3], z + 0.1)),
-                    )
-                )
-        self._portals = portals
-        self._rooms = layout.rooms
-
-    def _visible_rooms(self, T_wc: np.ndarray, tx: float, ty: float) -> np.ndarray | None:
-        """Rooms a line of sight can reach: the camera's room(s), then every room behind a chain of
-        portals that are each inside the view frustum (conservative). None = camera outside all rooms."""
-        cam = T_wc[:3, 3]
-        floor = int(np.clip(np.searchsorted(self._floor_z, cam[2] + 1e-6) - 1, 0, len(self._floor_z) - 1))
-        seen = {k for k, r in enumerate(self._rooms) if r.floor == floor and r.contains_xy(cam[:2], margin=-0.3)}
-        if not seen:
-            return None
-        if self._portals:
-            in_view = ~_outside_frustum(np.stack([c for _, _, c in self._portals]), T_wc, tx, ty)
-            grew = True
-            while grew:
-                grew = False
-                for (a, b, _), ok in zip(self._portals, in_view):
-                    if ok and (a in seen) != (b in seen):
-                        seen |= {a, b}
-                        grew = True
-        mask = np.zeros(len(self._rooms), dtype=bool)
-        mask[list(seen)] = True
-        return mask
-
     def _cull(self, T_wc: np.ndarray, K: np.ndarray, width: int, height: int) -> None:
-        """Hide (alpha 0: MuJoCo skips them) geoms that cannot be seen: outside the view frustum, or in
-        rooms no line of sight reaches through doorways and stair openings.
-
-        The classic renderer has no culling and llvmpipe pays per drawn geom, so in a multi-room
-        scene this is most of the frame time. Culling is conservative: the image is unchanged.
-        """
-        tx = 1.02 * (width / 2) / K[0, 0]
-        ty = 1.02 * (height / 2) / K[1, 1]
-        out = _outside_frustum(self._corners, T_wc, tx, ty)
-        rooms = self._visible_rooms(T_wc, tx, ty)
-        if rooms is not None:
-            out |= ~self._geom_rooms[:, rooms].any(axis=1)
-        self.model.geom_rgba[:, 3] = np.where(out, 0.0, 1.0)
+        """Hide (alpha 0: MuJoCo skips them) the geoms the :class:`Culler` finds out of sight."""
+        self.model.geom_rgba[:, 3] = np.where(self._culler.hidden(self._corners, T_wc, K, width, height), 0.0, 1.0)
 
     def _set_camera(self, T_wc: np.ndarray, K: np.ndarray, width: int, height: int) -> None:
         T_gl = geometry.check_pose(T_wc, "camera pose") @ geometry.GL_TO_CV  # the single CV -> GL conversion

@@ -1,11 +1,12 @@
 """The pyrender backend: RGB, metric depth and instance ids of a :class:`~generators.layout.Layout`.
 
 Same scene description, same geometry and textures as the MuJoCo backend (:func:`render.part_surface`),
-shaded by pyrender's physically based pipeline (metallic-roughness materials, sRGB output), which
-carries an asset pack's image textures with their own UVs and mipmaps. Two choices make its depth and
-ids agree with MuJoCo's: the main framebuffer is single-sampled (pyrender's 4x MSAA resolves depth to
-a sample off the pixel centre, an error of millimetres on grazing surfaces, and blends instance colours
-on edges), and the camera is MuJoCo's symmetric perspective (vertical FOV from K).
+shaded by pyrender's physically based pipeline (metallic-roughness materials, linear-light shading,
+sRGB output), with the same light selection and the same :class:`render.Culler`. Two choices make its
+depth and ids agree with MuJoCo's: the main framebuffer is single-sampled (pyrender's 4x MSAA resolves
+depth to a sample off the pixel centre, an error of millimetres on grazing surfaces, and blends instance
+colours on edges), and the camera is MuJoCo's symmetric perspective (vertical FOV from K). Nodes are
+drawn and lights summed in a fixed order (:class:`_OrderedScene`), so a spec gives the same bytes.
 
 It needs the optional ``pyrender`` extra (the ``pyrender2`` distribution, a numpy-2 fix of pyrender
 0.1.45 that accepts MuJoCo's PyOpenGL). It renders through EGL in the same process as MuJoCo; closing
@@ -24,7 +25,9 @@ from generators.layout import Layout
 from generators.render import (
     MAX_ACTIVE_LIGHTS,
     ZNEAR_M,
+    Culler,
     Renderer,
+    _box_corners,
     fovy_from_K,
     part_surface,
     scene_extent,
@@ -126,18 +129,23 @@ class PyrenderRenderer(Renderer):
         self.layout = layout
         self._max_size = (max_width, max_height)
         self.scene = _OrderedScene(bg_color=(0.0, 0.0, 0.0, 1.0), ambient_light=(AMBIENT,) * 3)
-        self._meshes: dict[tuple, pyrender.Mesh] = {}
-        self._textures: dict[tuple, pyrender.Texture] = {}
-        self._nodes: dict[int, list[pyrender.Node]] = {}
+        self._surfaces: dict[tuple, dict] = {}
+        self._materials: dict[tuple, pyrender.MetallicRoughnessMaterial] = {}  # one material per texture
+        self._nodes: dict[int, list[int]] = {}  # instance id -> indices into the lists below
         self._seg: dict[pyrender.Node, np.ndarray] = {}
-        self._inst_T0 = {i.id: i.transform.copy() for i in layout.instances}
+        node_list, local_corners, node_instance = [], [], []
         for inst in layout.instances:
-            nodes = []
             for part in inst.parts:
-                node = self.scene.add(self._mesh(part), pose=inst.transform)
+                # a mesh per node (primitives shared by identical copies), so each node culls on its own
+                node = self.scene.add(pyrender.Mesh([self._primitive(part)]), pose=inst.transform)
                 self._seg[node] = _id_colour(inst.id)
-                nodes.append(node)
-            self._nodes[inst.id] = nodes
+                self._nodes.setdefault(inst.id, []).append(len(node_list))
+                node_list.append(node)
+                local_corners.append(_box_corners(*part.mesh.bounds))
+                node_instance.append(inst.id)
+        self._node_list, self._local_corners = node_list, np.array(local_corners)
+        self._corners = np.stack([self._world_corners(k) for k in range(len(node_list))])
+        self._culler = Culler(layout, node_instance)
         self._lights = []
         for li in layout.lights:
             light = pyrender.PointLight(color=np.ones(3), intensity=LIGHT_INTENSITY)
@@ -155,28 +163,31 @@ class PyrenderRenderer(Renderer):
         self._level, self._tint, self._off = 1.0, np.ones(3), set()
         self._gl: _Offscreen | None = None  # created on the first render
 
-    def _mesh(self, part) -> pyrender.Mesh:
-        """One pyrender mesh per (geometry, appearance), shared by identical copies."""
+    def _world_corners(self, k: int) -> np.ndarray:
+        T = self.scene.get_pose(self._node_list[k])
+        return self._local_corners[k] @ T[:3, :3].T + T[:3, 3]
+
+    def _primitive(self, part) -> pyrender.Primitive:
+        """A new primitive of ``part`` (pyrender binds each to one mesh); identical copies share its
+        arrays, material and texture."""
         key = (id(part.mesh), id(part.image), part.material, part.rgb, part.texture_seed)
-        if key not in self._meshes:
+        if key not in self._surfaces:
             verts, normals, uv, faces, image = part_surface(part)
             tkey = (id(part.image),) if part.image is not None else (part.material, part.rgb, part.texture_seed)
-            if tkey not in self._textures:
+            if tkey not in self._materials:
                 sampler = pyrender.Sampler(
                     magFilter=GL.GL_LINEAR, minFilter=GL.GL_LINEAR_MIPMAP_LINEAR, wrapS=GL.GL_REPEAT, wrapT=GL.GL_REPEAT
                 )
-                self._textures[tkey] = pyrender.Texture(source=image, source_channels="RGB", sampler=sampler)
-            material = pyrender.MetallicRoughnessMaterial(
-                baseColorTexture=self._textures[tkey],
-                metallicFactor=0.0,
-                roughnessFactor=0.45 if part.material in GLOSSY else 0.85,
-            )
+                self._materials[tkey] = pyrender.MetallicRoughnessMaterial(
+                    baseColorTexture=pyrender.Texture(source=image, source_channels="RGB", sampler=sampler),
+                    metallicFactor=0.0,
+                    roughnessFactor=0.45 if part.material in GLOSSY else 0.85,
+                )
             uv = uv * [1.0, -1.0] + [0.0, 1.0]  # pyrender uploads images bottom row first
-            prim = pyrender.Primitive(
-                positions=verts, normals=normals, texcoord_0=uv, indices=faces, material=material, mode=4
+            self._surfaces[key] = dict(
+                positions=verts, normals=normals, texcoord_0=uv, indices=faces, material=self._materials[tkey]
             )
-            self._meshes[key] = pyrender.Mesh([prim])
-        return self._meshes[key]
+        return pyrender.Primitive(**self._surfaces[key], mode=4)
 
     def _context(self, width: int, height: int) -> _Offscreen:
         if width > self._max_size[0] or height > self._max_size[1]:
@@ -195,6 +206,8 @@ class PyrenderRenderer(Renderer):
         self.scene.set_pose(self._cam_node, T_gl)
         self.scene.set_pose(self._head_node, T_gl)
         self._select_lights(T_wc[:3, 3])
+        for node, hide in zip(self._node_list, self._culler.hidden(self._corners, T_wc, K, width, height)):
+            node.mesh.is_visible = not hide
 
     def _select_lights(self, cam: np.ndarray) -> None:
         """The MuJoCo backend's light selection: the nearest lights on the camera's floor, scaled and tinted."""
@@ -247,8 +260,9 @@ class PyrenderRenderer(Renderer):
         self._headlight.color = self._tint
 
     def set_instance_pose(self, instance_id: int, T_world: np.ndarray) -> None:
-        for node in self._nodes[instance_id]:
-            self.scene.set_pose(node, np.asarray(T_world, dtype=np.float64))
+        for k in self._nodes[instance_id]:
+            self.scene.set_pose(self._node_list[k], np.asarray(T_world, dtype=np.float64))
+            self._corners[k] = self._world_corners(k)
 
     def close(self) -> None:
         if self._gl is not None:

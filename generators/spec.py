@@ -112,21 +112,14 @@ class SceneSpec:
     """Objects moved or rotated in the query_displaced variant."""
     light_levels: list[float] = field(default_factory=lambda: [0.7, 0.5, 0.35, 0.2])
     """Brightness of query_light1..4 relative to the mapping lighting (progressive decay, each in (0, 1])."""
-    backend: Literal["auto", "mujoco", "pyrender"] = "auto"
-    """Renderer backend; "auto": pyrender for scenes with asset packs (it carries their textures
-    better), MuJoCo otherwise (see :attr:`renderer`)."""
+    backend: Literal["mujoco", "pyrender"] = "mujoco"
+    """Renderer backend: MuJoCo (exact, fast), or pyrender (the optional extra; physically based shading).
+    Both draw the same geometry and textures, asset packs' included."""
     assets: AssetsSpec = field(default_factory=AssetsSpec)
     """Object sources: asset packs and / or the procedural library."""
 
     def __post_init__(self) -> None:
         validate_scene(self)
-
-    @property
-    def renderer(self) -> str:
-        """The backend that renders this scene ("auto" resolved)."""
-        if self.backend != "auto":
-            return self.backend
-        return "pyrender" if self.assets.packs else "mujoco"
 
 
 def validate_scene(spec: SceneSpec) -> None:
@@ -278,13 +271,12 @@ def load_suite(path: Path | str) -> SuiteSpec:
 
 
 def spec_record(spec: SceneSpec) -> dict:
-    """The spec as scene.json records it and :func:`spec_hash` hashes it: the backend resolved, asset
-    packs as their name and content fingerprint (not where they lie on disk), and no ``assets`` key for
-    a procedural scene, so specs that predate packs keep their hash."""
+    """The spec as scene.json records it and :func:`spec_hash` hashes it: asset packs as their name and
+    content fingerprint (not where they lie on disk), and no ``assets`` key for a procedural scene, so
+    specs that predate packs keep their hash."""
     from generators.asset_packs import load_manifest, pack_fingerprint
 
     record = config.to_dict(spec)
-    record["backend"] = spec.renderer
     if spec.assets == AssetsSpec():
         del record["assets"]
     else:

@@ -26,8 +26,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--backend",
         choices=["mujoco", "pyrender"],
-        default="pyrender",
-        help="renderer of the gallery (default pyrender)",
+        default="mujoco",
+        help="renderer of the gallery (default mujoco)",
     )
     parser.add_argument(
         "--example", action="store_true", help="write the example pack into PACK first (a new directory)"

@@ -145,16 +145,14 @@ def test_library_mixes_packs_with_procedural(example: Path) -> None:
 def test_procedural_specs_keep_their_hash_and_record() -> None:
     spec = SceneSpec(name="s", seed=5)
     record = spec_record(spec)
-    assert "assets" not in record and record["backend"] == "mujoco" and spec.renderer == "mujoco"
-    legacy = {k: v for k, v in config.to_dict(spec).items() if k != "assets"} | {"backend": "mujoco"}
-    assert record == legacy
+    assert "assets" not in record and record == {k: v for k, v in config.to_dict(spec).items() if k != "assets"}
 
 
 def test_pack_scene_spec_records_content_not_paths(tmp_path: Path, example: Path) -> None:
     copy = shutil.copytree(example, tmp_path / "elsewhere")
     a = config.from_dict(SceneSpec, {"name": "s", "assets": {"packs": [str(example)]}})
     b = config.from_dict(SceneSpec, {"name": "s", "assets": {"packs": [str(copy)]}})
-    assert a.renderer == "pyrender" and spec_hash(a) == spec_hash(b)  # moved pack, same content, same scene
+    assert spec_hash(a) == spec_hash(b)  # moved pack, same content, same scene
     assert spec_record(a)["assets"]["packs"] == [{"name": "example", "sha256": pack_fingerprint(example)}]
     (copy / "manifest.yaml").write_text((copy / "manifest.yaml").read_text().replace("weight: 3.0", "weight: 4.0"))
     assert spec_hash(a) != spec_hash(b)

@@ -54,6 +54,19 @@ def test_depth_and_ids_agree_with_mujoco(scene) -> None:
         pr.close()
 
 
+def test_culling_is_exact(scene, monkeypatch) -> None:
+    """Frustum and portal culling of pyrender nodes changes no pixel, and skips most nodes."""
+    layout, poses = scene
+    with create_renderer(layout, "pyrender", W, H) as r:
+        culled = [r.render(T, K, W, H) for T in poses]
+        r.render_instances(poses[0], K, W, H)
+        drawn = np.mean([node.mesh.is_visible for node in r._node_list])
+        monkeypatch.setattr(r._culler, "hidden", lambda corners, *a: np.zeros(len(corners), bool))
+        for T, frame in zip(poses, culled):
+            assert all(np.array_equal(a, b) for a, b in zip(frame, r.render(T, K, W, H)))
+    assert drawn < 0.5
+
+
 def test_same_bytes_twice_and_moves_instances(scene) -> None:
     layout, poses = scene
     frames = []

@@ -24,7 +24,9 @@ from generators.generate import generate_scene
 from generators.layout import build_layout
 from generators.spec import SceneSpec, load_suite, spec_hash, spec_record
 from openreloc_bench import config
-from openreloc_bench.errors import ConfigError
+from openreloc_bench.data.scene import Scene
+from openreloc_bench.envs.world import scene_spec
+from openreloc_bench.errors import ConfigError, DataError
 
 REPO = Path(__file__).resolve().parents[2]
 EXAMPLE = REPO / "scenes" / "asset-packs" / "example"
@@ -203,3 +205,5 @@ def test_pack_suite_generates_deterministically(tmp_path: Path, backend: str) ->
     objects = json.loads((roots[0] / "objects.json").read_text())
     objects = objects["objects"] if isinstance(objects, dict) else objects
     assert any(o["category"] == "storage_crate" for o in objects)
+    with pytest.raises(DataError, match="made with asset packs \\(example\\)"):
+        scene_spec(Scene(roots[0]))  # the environments rebuild layouts from procedural specs only

@@ -270,6 +270,31 @@ def build_mjcf(layout: Layout, max_width: int, max_height: int) -> tuple[str, di
     return xml, assets, geom_instance
 
 
+def camera_floor(floor_z: np.ndarray, z: float) -> int:
+    """Index of the storey a camera at height ``z`` is on."""
+    return int(np.clip(np.searchsorted(floor_z, z + 1e-6) - 1, 0, len(floor_z) - 1))
+
+
+class LightSelector:
+    """The lights a frame shades with: the :data:`MAX_ACTIVE_LIGHTS` nearest the camera on its storey,
+    less those switched off (MuJoCo's classic renderer shades with at most 8; farther rooms are behind
+    walls anyway)."""
+
+    def __init__(self, layout: Layout):
+        self.pos = np.array([li.pos for li in layout.lights]).reshape(-1, 3)
+        self.floor = np.array([li.floor for li in layout.lights], dtype=int)
+        self.floor_z = np.asarray(layout.floor_z)
+
+    def active(self, cam: np.ndarray, off: set[int]) -> np.ndarray:
+        """(L,) True for the lights on in a frame taken from camera centre ``cam``."""
+        d = np.linalg.norm(self.pos - cam, axis=1) + 1000.0 * (self.floor != camera_floor(self.floor_z, cam[2]))
+        d[list(off)] = np.inf
+        order = np.argsort(d, kind="stable")[:MAX_ACTIVE_LIGHTS]
+        active = np.zeros(len(d), dtype=bool)
+        active[order[np.isfinite(d[order])]] = True
+        return active
+
+
 class Culler:
     """Which drawables (geoms, nodes) cannot be seen from a camera: those outside the view frustum, and
     those in rooms no line of sight reaches through doorways and stair openings (conservative: the image
@@ -315,7 +340,7 @@ class Culler:
         """Rooms a line of sight can reach: the camera's room(s), then every room behind a chain of
         portals that are each inside the view frustum (conservative). None = camera outside all rooms."""
         cam = T_wc[:3, 3]
-        floor = int(np.clip(np.searchsorted(self._floor_z, cam[2] + 1e-6) - 1, 0, len(self._floor_z) - 1))
+        floor = camera_floor(self._floor_z, cam[2])
         seen = {k for k, r in enumerate(self._rooms) if r.floor == floor and r.contains_xy(cam[:2], margin=-0.3)}
         if not seen:
             return None
@@ -366,9 +391,7 @@ class MujocoRenderer(Renderer):
         self._update_geom_corners()
         self._culler = Culler(layout, geom_instance)
         self._inst_T0 = {i.id: i.transform.copy() for i in layout.instances}
-        self._light_pos = np.array([li.pos for li in layout.lights]).reshape(-1, 3)
-        self._light_floor = np.array([li.floor for li in layout.lights], dtype=int)
-        self._floor_z = np.asarray(layout.floor_z)
+        self._lights = LightSelector(layout)
         self._base = (
             self.model.light_diffuse.copy(),
             self.model.light_ambient.copy(),
@@ -438,15 +461,8 @@ class MujocoRenderer(Renderer):
         self._cull(T_wc, K, width, height)
 
     def _select_lights(self, cam: np.ndarray) -> None:
-        if not len(self._light_pos):
-            return
-        cam_floor = int(np.clip(np.searchsorted(self._floor_z, cam[2] + 1e-6) - 1, 0, len(self._floor_z) - 1))
-        d = np.linalg.norm(self._light_pos - cam, axis=1) + 1000.0 * (self._light_floor != cam_floor)
-        d[list(self._off)] = np.inf
-        order = np.argsort(d, kind="stable")[:MAX_ACTIVE_LIGHTS]
-        active = np.zeros(len(d), dtype=np.uint8)
-        active[order[np.isfinite(d[order])]] = 1
-        self.model.light_active[:] = active
+        if len(self._lights.pos):
+            self.model.light_active[:] = self._lights.active(cam, self._off).astype(np.uint8)
 
     def _draw(self, T_wc: np.ndarray, K: np.ndarray, width: int, height: int) -> mujoco.MjrRect:
         if width > self._max_size[0] or height > self._max_size[1]:
@@ -532,7 +548,7 @@ class MujocoRenderer(Renderer):
         self.model.vis.headlight.ambient[:] = self._headlight[0] * level * tint_a
         self.model.vis.headlight.diffuse[:] = self._headlight[1] * level * tint_a
         self._off = {int(i) for i in lights_off}
-        if len(self._off) >= len(self._light_pos) > 0:
+        if len(self._off) >= len(self._lights.pos) > 0:
             raise ValueError("at least one light must stay on")
 
     def set_instance_pose(self, instance_id: int, T_world: np.ndarray) -> None:

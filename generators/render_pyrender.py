@@ -23,9 +23,9 @@ import numpy as np
 
 from generators.layout import Layout
 from generators.render import (
-    MAX_ACTIVE_LIGHTS,
     ZNEAR_M,
     Culler,
+    LightSelector,
     Renderer,
     _box_corners,
     fovy_from_K,
@@ -151,10 +151,9 @@ class PyrenderRenderer(Renderer):
             light = pyrender.PointLight(color=np.ones(3), intensity=LIGHT_INTENSITY)
             T = np.eye(4)
             T[:3, 3] = li.pos
-            self._lights.append((light, self.scene.add(light, pose=T)))
-        self._light_pos = np.array([li.pos for li in layout.lights]).reshape(-1, 3)
-        self._light_floor = np.array([li.floor for li in layout.lights], dtype=int)
-        self._floor_z = np.asarray(layout.floor_z)
+            self.scene.add(light, pose=T)
+            self._lights.append(light)
+        self._selector = LightSelector(layout)
         self._headlight = pyrender.DirectionalLight(color=np.ones(3), intensity=HEADLIGHT)
         extent = scene_extent(layout)
         self._camera = pyrender.PerspectiveCamera(yfov=1.0, znear=ZNEAR_M, zfar=2.0 * extent)
@@ -187,7 +186,7 @@ class PyrenderRenderer(Renderer):
             self._surfaces[key] = dict(
                 positions=verts, normals=normals, texcoord_0=uv, indices=faces, material=self._materials[tkey]
             )
-        return pyrender.Primitive(**self._surfaces[key], mode=4)
+        return pyrender.Primitive(**self._surfaces[key], mode=pyrender.constants.GLTF.TRIANGLES)
 
     def _context(self, width: int, height: int) -> _Offscreen:
         if width > self._max_size[0] or height > self._max_size[1]:
@@ -210,16 +209,9 @@ class PyrenderRenderer(Renderer):
             node.mesh.is_visible = not hide
 
     def _select_lights(self, cam: np.ndarray) -> None:
-        """The MuJoCo backend's light selection: the nearest lights on the camera's floor, scaled and tinted."""
-        if not len(self._light_pos):
-            return
-        cam_floor = int(np.clip(np.searchsorted(self._floor_z, cam[2] + 1e-6) - 1, 0, len(self._floor_z) - 1))
-        d = np.linalg.norm(self._light_pos - cam, axis=1) + 1000.0 * (self._light_floor != cam_floor)
-        d[list(self._off)] = np.inf
-        order = np.argsort(d, kind="stable")[:MAX_ACTIVE_LIGHTS]
-        on = set(order[np.isfinite(d[order])].tolist())
-        for k, (light, _) in enumerate(self._lights):
-            light.intensity = LIGHT_INTENSITY * self._level if k in on else 0.0
+        """The MuJoCo backend's lights (:class:`render.LightSelector`), scaled and tinted."""
+        for light, on in zip(self._lights, self._selector.active(cam, self._off)):
+            light.intensity = LIGHT_INTENSITY * self._level if on else 0.0
             light.color = self._tint
 
     def render(

@@ -1,11 +1,13 @@
 """Rendering speed of the scene generator (prints numbers; not a test).
 
     python benchmarks/bench_render.py [--suite scenes/multi-room.yaml] [--scene sc4] [--frames 200] [--full]
+                                      [--backends mujoco,pyrender]
 
 Reports, for one multi-room scene at the suite's resolution (640x480): layout / model build time,
 RGB + depth + instance frames per second over the first ``--frames`` mapping poses (render only,
 and render + PNG encoding + atomic writes), the projected time for 1000 frames, and with ``--full``
 the wall time of generating the whole scene (all splits and variants) with ``generate_scene``.
+``--backends`` adds one render-only line per named backend (pyrender needs its extra).
 Targets (issue 3): >= 15 frames/s and a 1000-frame multi-room scene in <= 3 minutes.
 """
 
@@ -37,6 +39,7 @@ def main() -> None:
     ap.add_argument("--scene", default="sc4")
     ap.add_argument("--frames", type=int, default=200)
     ap.add_argument("--full", action="store_true", help="also generate the whole scene and report its wall time")
+    ap.add_argument("--backends", default="", help="comma-separated backends for one render-only fps line each")
     args = ap.parse_args()
     spec = next(s for s in load_suite(args.suite).scene_specs() if s.name == args.scene)
     print(
@@ -48,26 +51,16 @@ def main() -> None:
     t_layout = time.perf_counter() - t
     n_obj = sum(not i.structural for i in layout.instances)
     print(f"layout: {t_layout:.1f} s, {len(layout.instances)} instances ({n_obj} objects), {len(layout.lights)} lights")
-    t = time.perf_counter()
-    renderer = create_renderer(layout, spec.backend, spec.width, spec.height)
     mapping = mapping_trajectory(layout, spec)
-    print(f"model + mapping path: {time.perf_counter() - t:.1f} s, {len(mapping)} mapping poses")
     K = geometry.intrinsics_from_fov(spec.width, spec.height, spec.fov_y)
     poses = mapping[: args.frames]
-    renderer.render(poses[0], K, spec.width, spec.height)  # GL context creation, texture upload
-    times = []
-    cpu0 = time.process_time()
-    for T in poses:
-        t = time.perf_counter()
-        renderer.render(T, K, spec.width, spec.height)
-        times.append(time.perf_counter() - t)
-    cpu = (time.process_time() - cpu0) / len(poses)
-    times = np.array(times)
-    print(
-        f"render RGB+depth+instances: {1 / times.mean():.1f} frames/s mean, {1 / np.median(times):.1f} median "
-        f"over {len(times)} frames; {1000 * cpu:.0f} ms CPU per frame (all threads; on an idle machine at most "
-        f"{os.cpu_count() / cpu:.0f} frames/s)"
-    )
+    for backend in [b for b in args.backends.split(",") if b]:
+        with create_renderer(layout, backend, spec.width, spec.height) as r:
+            print(f"{backend}: " + _render_fps(r, poses, K, spec.width, spec.height))
+    t = time.perf_counter()
+    renderer = create_renderer(layout, spec.backend, spec.width, spec.height)
+    print(f"model ({spec.backend}): {time.perf_counter() - t:.1f} s, {len(mapping)} mapping poses")
+    print(_render_fps(renderer, poses, K, spec.width, spec.height))
     with tempfile.TemporaryDirectory() as tmp:
         t = time.perf_counter()
         render_split(renderer, SceneWriter(tmp), "mapping", poses, K, spec, resume=False, bar=None)
@@ -82,6 +75,24 @@ def main() -> None:
             wall = time.perf_counter() - t
             n = sum(1 for _ in root.rglob("pose/*.txt"))
         print(f"full scene: {n} frames (all splits) in {wall:.0f} s wall ({n / wall:.1f} frames/s overall)")
+
+
+def _render_fps(renderer, poses, K, width: int, height: int) -> str:
+    """One line: RGB + depth + instances frames per second over ``poses`` (after a warm-up frame)."""
+    renderer.render(poses[0], K, width, height)  # GL context creation, texture upload
+    times = []
+    cpu0 = time.process_time()
+    for T in poses:
+        t = time.perf_counter()
+        renderer.render(T, K, width, height)
+        times.append(time.perf_counter() - t)
+    cpu = (time.process_time() - cpu0) / len(poses)
+    times = np.array(times)
+    return (
+        f"render RGB+depth+instances at {width}x{height}: {1 / times.mean():.1f} frames/s mean, "
+        f"{1 / np.median(times):.1f} median over {len(times)} frames; {1000 * cpu:.0f} ms CPU per frame "
+        f"(all threads; on an idle machine at most {os.cpu_count() / cpu:.0f} frames/s)"
+    )
 
 
 if __name__ == "__main__":

@@ -21,7 +21,7 @@ from tqdm import tqdm
 
 from generators.layout import Layout, build_layout
 from generators.render import Renderer, create_renderer
-from generators.spec import GENERATOR_VERSION, SceneSpec, SuiteSpec, spec_hash
+from generators.spec import GENERATOR_VERSION, SceneSpec, SuiteSpec, spec_hash, spec_record
 from generators.trajectories import mapping_trajectory, sample_queries
 from generators.variants import LIGHT_SPLITS, Lighting, light_variants, sample_displacements
 from openreloc_bench import config, geometry
@@ -39,7 +39,7 @@ def scene_info(spec: SceneSpec, layout: Layout, K: np.ndarray, counts: dict[str,
         "kind": spec.kind,
         "seed": spec.seed,
         "spec_hash": spec_hash(spec),
-        "spec": config.to_dict(spec),
+        "spec": spec_record(spec),
         "generator_version": GENERATOR_VERSION,
         "intrinsics": {"K": np.round(K, 9).tolist(), "width": spec.width, "height": spec.height, "fov_y": spec.fov_y},
         "footprint": [round(v, 5) for v in layout.footprint],

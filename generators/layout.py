@@ -25,7 +25,8 @@ import numpy as np
 import trimesh
 from scipy import ndimage
 
-from generators.assets import Asset, Part, categories_for_room, sample_asset
+from generators.asset_packs import library_for
+from generators.assets import Asset, Part
 from generators.materials import COLOURS
 from generators.spec import SceneSpec
 from openreloc_bench.data.scene import ObjectInfo
@@ -410,6 +411,7 @@ class _Builder:
         self.blocked: list[tuple[int, tuple[float, float, float, float]]] = []
         self.storey = spec.ceiling_height + STOREY_GAP
         self._empty_free: dict[str, int] = {}
+        self.library = library_for(spec)
 
     def tex_seed(self) -> int:
         return int(self.rng.integers(1 << 30))
@@ -811,7 +813,7 @@ class _Builder:
         return [i.aabb for i in self.instances if i.category == "window" and i.room == room.name]
 
     def _pick(self, room: Room, placement: str) -> str | None:
-        cats = categories_for_room(room.kind, placement)
+        cats = self.library.categories(room.kind, placement)
         if not cats:
             return None
         w = np.array([c.weight for c in cats], float)
@@ -920,10 +922,10 @@ class _Builder:
 
     def _chairs_around(self, table: Instance, room: Room, occupied: _Boxes, keep_clear: list) -> list[Instance]:
         """An identical chair set around a table (one Asset reused)."""
-        chair_cats = [c.name for c in categories_for_room(room.kind, "floor") if "chair" in c.name]
+        chair_cats = [c.name for c in self.library.categories(room.kind, "floor") if "chair" in c.name]
         if not chair_cats:
             return []
-        chair = sample_asset(chair_cats[int(self.rng.integers(len(chair_cats)))], self.rng)
+        chair = self.library.sample(chair_cats[int(self.rng.integers(len(chair_cats)))], self.rng)
         lb = table.local_bounds
         ce = chair.extent
         chair_corners = self._corners(chair)
@@ -962,9 +964,8 @@ class _Builder:
             if cat in previous and u < 0.30:
                 return previous[cat]
             if cat in previous and u < 0.45:
-                a = previous[cat].attributes
-                return sample_asset(cat, rng, colour=a["colour"], material=a["material"], size=a["size"])
-            previous[cat] = sample_asset(cat, rng)
+                return self.library.sample(cat, rng, like=previous[cat])
+            previous[cat] = self.library.sample(cat, rng)
             return previous[cat]
 
         # ceiling lights first (one per light), then furniture, wall items, surface items

@@ -138,6 +138,33 @@ def triplanar_uv(mesh_vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarr
     return verts, normals, uv.reshape(-1, 2), new_faces
 
 
+def part_surface(part: Part) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """What a renderer draws of a part: vertices, normals, texture coordinates, faces and the RGB
+    texture image. Coordinates follow MuJoCo's convention (v = 0 at the image's top row).
+
+    A procedural part gets flat faces, box-projected coordinates (:func:`triplanar_uv`) and its
+    material's tileable texture; an image-textured part (asset packs) keeps its shared vertices, its
+    smooth vertex normals and its own coordinates and image."""
+    if part.image is None:
+        v, n, uv, f = triplanar_uv(np.asarray(part.mesh.vertices), np.asarray(part.mesh.faces))
+        return v, n, uv, f, make_texture(part.material, part.rgb, part.texture_seed, TEXTURE_PX)
+    mesh = part.mesh
+    return (
+        np.asarray(mesh.vertices, dtype=np.float64),
+        np.asarray(mesh.vertex_normals, dtype=np.float64),
+        np.asarray(part.uv, dtype=np.float64) * [1.0, -1.0] + [0.0, 1.0],
+        np.asarray(mesh.faces, dtype=np.int32),
+        part.image,
+    )
+
+
+def scene_extent(layout: Layout) -> float:
+    """Diagonal of the scene's bounding box plus 1 m: the scale of the depth range."""
+    lo = np.min([i.aabb[0] for i in layout.instances], axis=0)
+    hi = np.max([i.aabb[1] for i in layout.instances], axis=0)
+    return float(np.linalg.norm(hi - lo)) + 1.0
+
+
 def msh_bytes(vertices: np.ndarray, normals: np.ndarray, uv: np.ndarray, faces: np.ndarray) -> bytes:
     """MuJoCo's binary mesh format: 4 int32 counts, float32 vertices/normals/texcoords, int32 faces."""
     header = struct.pack("<4i", len(vertices), len(normals), len(uv), len(faces))
@@ -153,14 +180,23 @@ def _texture_keys(parts: list[Part]) -> Callable[[Part], tuple]:
     multi-floor house) folds the seeds of each (material, colour) into the most variants that fit;
     scenes within the limit render exactly as before."""
     seeds: dict[tuple, set[int]] = {}
+    images = {id(p.image) for p in parts if p.image is not None}  # an image part is its own material
     for p in parts:
-        seeds.setdefault(_appearance(p), set()).add(int(p.texture_seed))
-    if sum(map(len, seeds.values())) <= MAX_MATERIALS:
-        return lambda p: (*_appearance(p), int(p.texture_seed))
+        if p.image is None:
+            seeds.setdefault(_appearance(p), set()).add(int(p.texture_seed))
+    budget = MAX_MATERIALS - len(images)
+
+    def key(p: Part, variants: int | None) -> tuple:
+        if p.image is not None:
+            return ("image", id(p.image))
+        return (*_appearance(p), int(p.texture_seed) if variants is None else int(p.texture_seed) % variants)
+
+    if sum(map(len, seeds.values())) <= budget:
+        return lambda p: key(p, None)
     # the count is not monotone in the number of variants (seed % v), so try them from the largest down
     for variants in range(max(map(len, seeds.values())), 0, -1):
-        if sum(len({s % variants for s in group}) for group in seeds.values()) <= MAX_MATERIALS:
-            return lambda p, v=variants: (*_appearance(p), int(p.texture_seed) % v)
+        if sum(len({s % variants for s in group}) for group in seeds.values()) <= budget:
+            return lambda p, v=variants: key(p, v)
     raise ConfigError(f"the scene has more than {MAX_MATERIALS} distinct (material, colour) pairs, MuJoCo's limit")
 
 
@@ -179,7 +215,7 @@ def build_mjcf(layout: Layout, max_width: int, max_height: int) -> tuple[str, di
     geom_instance: list[int] = []
     lo = np.min([i.aabb[0] for i in layout.instances], axis=0)
     hi = np.max([i.aabb[1] for i in layout.instances], axis=0)
-    extent = float(np.linalg.norm(hi - lo)) + 1.0
+    extent = scene_extent(layout)
     texture_key = _texture_keys([p for inst in layout.instances for p in inst.parts])
     for inst in layout.instances:
         T = inst.transform
@@ -187,20 +223,19 @@ def build_mjcf(layout: Layout, max_width: int, max_height: int) -> tuple[str, di
         pos = T[:3, 3]
         for part in inst.parts:
             key = texture_key(part)
+            mid = (id(part.mesh), id(part.uv))  # identical copies share Part meshes: one mesh asset each
+            if key not in tex_names or mid not in mesh_cache:
+                v, n, uv, f, image = part_surface(part)
             if key not in tex_names:
                 name = f"t{len(tex_names)}"
                 tex_names[key] = name
-                assets[f"{name}.png"] = io.encode_png(
-                    make_texture(part.material, part.rgb, part.texture_seed, TEXTURE_PX)
-                )
+                assets[f"{name}.png"] = io.encode_png(image)
                 spec = 0.5 if part.material in ("metal", "glass", "ceramic") else 0.15
                 asset_xml.append(f'<texture name="{name}" type="2d" file="{name}.png"/>')
                 asset_xml.append(f'<material name="m{name}" texture="{name}" specular="{spec}" shininess="0.3"/>')
-            mid = id(part.mesh)  # identical copies share Part meshes: one mesh asset each
             if mid not in mesh_cache:
                 mname = f"g{len(mesh_cache)}"
                 mesh_cache[mid] = mname
-                v, n, uv, f = triplanar_uv(np.asarray(part.mesh.vertices), np.asarray(part.mesh.faces))
                 assets[f"{mname}.msh"] = msh_bytes(v, n, uv, f)
                 asset_xml.append(f'<mesh name="{mname}" file="{mname}.msh" inertia="shell"/>')
             geom_xml.append(
@@ -235,6 +270,104 @@ def build_mjcf(layout: Layout, max_width: int, max_height: int) -> tuple[str, di
     return xml, assets, geom_instance
 
 
+def camera_floor(floor_z: np.ndarray, z: float) -> int:
+    """Index of the storey a camera at height ``z`` is on."""
+    return int(np.clip(np.searchsorted(floor_z, z + 1e-6) - 1, 0, len(floor_z) - 1))
+
+
+class LightSelector:
+    """The lights a frame shades with: the :data:`MAX_ACTIVE_LIGHTS` nearest the camera on its storey,
+    less those switched off (MuJoCo's classic renderer shades with at most 8; farther rooms are behind
+    walls anyway)."""
+
+    def __init__(self, layout: Layout):
+        self.pos = np.array([li.pos for li in layout.lights]).reshape(-1, 3)
+        self.floor = np.array([li.floor for li in layout.lights], dtype=int)
+        self.floor_z = np.asarray(layout.floor_z)
+
+    def active(self, cam: np.ndarray, off: set[int]) -> np.ndarray:
+        """(L,) True for the lights on in a frame taken from camera centre ``cam``."""
+        d = np.linalg.norm(self.pos - cam, axis=1) + 1000.0 * (self.floor != camera_floor(self.floor_z, cam[2]))
+        d[list(off)] = np.inf
+        order = np.argsort(d, kind="stable")[:MAX_ACTIVE_LIGHTS]
+        active = np.zeros(len(d), dtype=bool)
+        active[order[np.isfinite(d[order])]] = True
+        return active
+
+
+class Culler:
+    """Which drawables (geoms, nodes) cannot be seen from a camera: those outside the view frustum, and
+    those in rooms no line of sight reaches through doorways and stair openings (conservative: the image
+    is unchanged). Renderers without culling of their own pay per drawn object, so in a multi-room scene
+    this is most of the frame time."""
+
+    def __init__(self, layout: Layout, instance_ids: Sequence[int]):
+        """``instance_ids``: the instance of every drawable, in the order of the corners given to :meth:`hidden`."""
+        geom_instance = list(instance_ids)
+        names = [r.name for r in layout.rooms]
+        index = {n: k for k, n in enumerate(names)}
+        by_id = layout.by_id()
+        self._drawable_rooms = np.zeros((len(geom_instance), len(names)), dtype=bool)
+        for g, iid in enumerate(geom_instance):
+            inst = by_id[iid]
+            rooms = {inst.room, *inst.attributes.get("rooms", "").split(",")} - {"", None}
+            self._drawable_rooms[g, [index[n] for n in rooms]] = True
+            if not rooms:
+                self._drawable_rooms[g] = True
+        portals: list[tuple[int, int, np.ndarray]] = []
+        for d in layout.doors:
+            hx, hy = (DOOR_W / 2, WALL_T) if d.axis == 0 else (WALL_T, DOOR_W / 2)
+            lo, hi = d.centre + [-hx, -hy, 0.0], d.centre + [hx, hy, DOOR_H]
+            portals.append((index[d.rooms[0]], index[d.rooms[1]], _box_corners(lo, hi)))
+        for f, rect in layout.blocked:  # a stair rect on floor f is an opening in floor f + 1
+            centre = np.array([(rect[0] + rect[2]) / 2, (rect[1] + rect[3]) / 2])
+            below = [r for r in layout.rooms_on(f) if r.contains_xy(centre)]
+            above = [r for r in layout.rooms_on(f + 1) if r.contains_xy(centre)]
+            if (f + 1, rect) in layout.blocked and below and above:
+                z = layout.floor_z[f + 1]
+                portals.append(
+                    (
+                        index[below[0].name],
+                        index[above[0].name],
+                        _box_corners((rect[0], rect[1], z - 0.5), (rect[2], rect[3], z + 0.1)),
+                    )
+                )
+        self._portals = portals
+        self._rooms = layout.rooms
+        self._floor_z = np.asarray(layout.floor_z)
+
+    def _visible_rooms(self, T_wc: np.ndarray, tx: float, ty: float) -> np.ndarray | None:
+        """Rooms a line of sight can reach: the camera's room(s), then every room behind a chain of
+        portals that are each inside the view frustum (conservative). None = camera outside all rooms."""
+        cam = T_wc[:3, 3]
+        floor = camera_floor(self._floor_z, cam[2])
+        seen = {k for k, r in enumerate(self._rooms) if r.floor == floor and r.contains_xy(cam[:2], margin=-0.3)}
+        if not seen:
+            return None
+        if self._portals:
+            in_view = ~_outside_frustum(np.stack([c for _, _, c in self._portals]), T_wc, tx, ty)
+            grew = True
+            while grew:
+                grew = False
+                for (a, b, _), ok in zip(self._portals, in_view):
+                    if ok and (a in seen) != (b in seen):
+                        seen |= {a, b}
+                        grew = True
+        mask = np.zeros(len(self._rooms), dtype=bool)
+        mask[list(seen)] = True
+        return mask
+
+    def hidden(self, corners: np.ndarray, T_wc: np.ndarray, K: np.ndarray, width: int, height: int) -> np.ndarray:
+        """(G,) True for the drawables whose world box corners (G,8,3) cannot be seen."""
+        tx = 1.02 * (width / 2) / K[0, 0]
+        ty = 1.02 * (height / 2) / K[1, 1]
+        out = _outside_frustum(corners, T_wc, tx, ty)
+        rooms = self._visible_rooms(T_wc, tx, ty)
+        if rooms is not None:
+            out |= ~self._drawable_rooms[:, rooms].any(axis=1)
+        return out
+
+
 class MujocoRenderer(Renderer):
     """MuJoCo classic OpenGL renderer over EGL (OSMesa fallback)."""
 
@@ -256,11 +389,9 @@ class MujocoRenderer(Renderer):
             g: (self.model.geom_pos[g].copy(), self.model.geom_quat[g].copy()) for g in range(self.model.ngeom)
         }
         self._update_geom_corners()
-        self._init_portals(layout, geom_instance)
+        self._culler = Culler(layout, geom_instance)
         self._inst_T0 = {i.id: i.transform.copy() for i in layout.instances}
-        self._light_pos = np.array([li.pos for li in layout.lights]).reshape(-1, 3)
-        self._light_floor = np.array([li.floor for li in layout.lights], dtype=int)
-        self._floor_z = np.asarray(layout.floor_z)
+        self._lights = LightSelector(layout)
         self._base = (
             self.model.light_diffuse.copy(),
             self.model.light_ambient.copy(),
@@ -317,74 +448,9 @@ class MujocoRenderer(Renderer):
         R = self.data.geom_xmat.reshape(-1, 3, 3)
         self._corners = np.einsum("gij,gkj->gki", R, local) + self.data.geom_xpos[:, None, :]
 
-    def _init_portals(self, layout: Layout, geom_instance: list[int]) -> None:
-        """Rooms of every geom, and the portals (doorways, stair openings) that join rooms."""
-        names = [r.name for r in layout.rooms]
-        index = {n: k for k, n in enumerate(names)}
-        by_id = layout.by_id()
-        self._geom_rooms = np.zeros((len(geom_instance), len(names)), dtype=bool)
-        for g, iid in enumerate(geom_instance):
-            inst = by_id[iid]
-            rooms = {inst.room, *inst.attributes.get("rooms", "").split(",")} - {"", None}
-            self._geom_rooms[g, [index[n] for n in rooms]] = True
-            if not rooms:
-                self._geom_rooms[g] = True
-        portals: list[tuple[int, int, np.ndarray]] = []
-        for d in layout.doors:
-            hx, hy = (DOOR_W / 2, WALL_T) if d.axis == 0 else (WALL_T, DOOR_W / 2)
-            lo, hi = d.centre + [-hx, -hy, 0.0], d.centre + [hx, hy, DOOR_H]
-            portals.append((index[d.rooms[0]], index[d.rooms[1]], _box_corners(lo, hi)))
-        for f, rect in layout.blocked:  # a stair rect on floor f is an opening in floor f + 1
-            centre = np.array([(rect[0] + rect[2]) / 2, (rect[1] + rect[3]) / 2])
-            below = [r for r in layout.rooms_on(f) if r.contains_xy(centre)]
-            above = [r for r in layout.rooms_on(f + 1) if r.contains_xy(centre)]
-            if (f + 1, rect) in layout.blocked and below and above:
-                z = layout.floor_z[f + 1]
-                portals.append(
-                    (
-                        index[below[0].name],
-                        index[above[0].name],
-                        _box_corners((rect[0], rect[1], z - 0.5), (rect[2], rect[3], z + 0.1)),
-                    )
-                )
-        self._portals = portals
-        self._rooms = layout.rooms
-
-    def _visible_rooms(self, T_wc: np.ndarray, tx: float, ty: float) -> np.ndarray | None:
-        """Rooms a line of sight can reach: the camera's room(s), then every room behind a chain of
-        portals that are each inside the view frustum (conservative). None = camera outside all rooms."""
-        cam = T_wc[:3, 3]
-        floor = int(np.clip(np.searchsorted(self._floor_z, cam[2] + 1e-6) - 1, 0, len(self._floor_z) - 1))
-        seen = {k for k, r in enumerate(self._rooms) if r.floor == floor and r.contains_xy(cam[:2], margin=-0.3)}
-        if not seen:
-            return None
-        if self._portals:
-            in_view = ~_outside_frustum(np.stack([c for _, _, c in self._portals]), T_wc, tx, ty)
-            grew = True
-            while grew:
-                grew = False
-                for (a, b, _), ok in zip(self._portals, in_view):
-                    if ok and (a in seen) != (b in seen):
-                        seen |= {a, b}
-                        grew = True
-        mask = np.zeros(len(self._rooms), dtype=bool)
-        mask[list(seen)] = True
-        return mask
-
     def _cull(self, T_wc: np.ndarray, K: np.ndarray, width: int, height: int) -> None:
-        """Hide (alpha 0: MuJoCo skips them) geoms that cannot be seen: outside the view frustum, or in
-        rooms no line of sight reaches through doorways and stair openings.
-
-        The classic renderer has no culling and llvmpipe pays per drawn geom, so in a multi-room
-        scene this is most of the frame time. Culling is conservative: the image is unchanged.
-        """
-        tx = 1.02 * (width / 2) / K[0, 0]
-        ty = 1.02 * (height / 2) / K[1, 1]
-        out = _outside_frustum(self._corners, T_wc, tx, ty)
-        rooms = self._visible_rooms(T_wc, tx, ty)
-        if rooms is not None:
-            out |= ~self._geom_rooms[:, rooms].any(axis=1)
-        self.model.geom_rgba[:, 3] = np.where(out, 0.0, 1.0)
+        """Hide (alpha 0: MuJoCo skips them) the geoms the :class:`Culler` finds out of sight."""
+        self.model.geom_rgba[:, 3] = np.where(self._culler.hidden(self._corners, T_wc, K, width, height), 0.0, 1.0)
 
     def _set_camera(self, T_wc: np.ndarray, K: np.ndarray, width: int, height: int) -> None:
         T_gl = geometry.check_pose(T_wc, "camera pose") @ geometry.GL_TO_CV  # the single CV -> GL conversion
@@ -395,15 +461,8 @@ class MujocoRenderer(Renderer):
         self._cull(T_wc, K, width, height)
 
     def _select_lights(self, cam: np.ndarray) -> None:
-        if not len(self._light_pos):
-            return
-        cam_floor = int(np.clip(np.searchsorted(self._floor_z, cam[2] + 1e-6) - 1, 0, len(self._floor_z) - 1))
-        d = np.linalg.norm(self._light_pos - cam, axis=1) + 1000.0 * (self._light_floor != cam_floor)
-        d[list(self._off)] = np.inf
-        order = np.argsort(d, kind="stable")[:MAX_ACTIVE_LIGHTS]
-        active = np.zeros(len(d), dtype=np.uint8)
-        active[order[np.isfinite(d[order])]] = 1
-        self.model.light_active[:] = active
+        if len(self._lights.pos):
+            self.model.light_active[:] = self._lights.active(cam, self._off).astype(np.uint8)
 
     def _draw(self, T_wc: np.ndarray, K: np.ndarray, width: int, height: int) -> mujoco.MjrRect:
         if width > self._max_size[0] or height > self._max_size[1]:
@@ -489,7 +548,7 @@ class MujocoRenderer(Renderer):
         self.model.vis.headlight.ambient[:] = self._headlight[0] * level * tint_a
         self.model.vis.headlight.diffuse[:] = self._headlight[1] * level * tint_a
         self._off = {int(i) for i in lights_off}
-        if len(self._off) >= len(self._light_pos) > 0:
+        if len(self._off) >= len(self._lights.pos) > 0:
             raise ValueError("at least one light must stay on")
 
     def set_instance_pose(self, instance_id: int, T_world: np.ndarray) -> None:
@@ -513,9 +572,11 @@ class MujocoRenderer(Renderer):
 
 
 def create_renderer(layout: Layout, backend: str = "mujoco", max_width: int = 640, max_height: int = 480) -> Renderer:
-    """Renderer for ``layout``; ``backend`` is 'mujoco' (default) or 'pyrender' (optional extra)."""
+    """Renderer for ``layout``; ``backend`` is 'mujoco' (default) or 'pyrender' (the optional extra)."""
     if backend == "mujoco":
         return MujocoRenderer(layout, max_width, max_height)
     if backend == "pyrender":
-        raise ConfigError("backend 'pyrender' is not available in this build; use 'mujoco'")
+        from generators.render_pyrender import PyrenderRenderer  # optional extra: imported on demand
+
+        return PyrenderRenderer(layout, max_width, max_height)
     raise ConfigError(f"unknown renderer backend '{backend}' (known: mujoco, pyrender)")

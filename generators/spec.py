@@ -56,6 +56,17 @@ _NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
 
 
 @dataclass
+class AssetsSpec:
+    """Where a scene's objects come from (structure -- walls, floors, doors, stairs -- is always procedural)."""
+
+    packs: list[Path] = field(default_factory=list)
+    """Asset pack directories (a ``manifest.yaml`` and its meshes; relative paths in a suite file are
+    relative to the suite file). Their categories join, or replace by name, the procedural ones."""
+    procedural: bool = True
+    """Also draw from the procedural library (false: only the packs' categories)."""
+
+
+@dataclass
 class SceneSpec:
     """One synthetic scene: layout kind, seed and size parameters."""
 
@@ -102,7 +113,10 @@ class SceneSpec:
     light_levels: list[float] = field(default_factory=lambda: [0.7, 0.5, 0.35, 0.2])
     """Brightness of query_light1..4 relative to the mapping lighting (progressive decay, each in (0, 1])."""
     backend: Literal["mujoco", "pyrender"] = "mujoco"
-    """Renderer backend."""
+    """Renderer backend: MuJoCo (exact, fast), or pyrender (the optional extra; physically based shading).
+    Both draw the same geometry and textures, asset packs' included."""
+    assets: AssetsSpec = field(default_factory=AssetsSpec)
+    """Object sources: asset packs and / or the procedural library."""
 
     def __post_init__(self) -> None:
         validate_scene(self)
@@ -188,6 +202,11 @@ def validate_scene(spec: SceneSpec) -> None:
         raise ConfigError(f"scene '{n}': 'light_levels' must be 4 values in (0, 1], got {spec.light_levels}")
     if not 16 <= spec.width <= 4096 or not 16 <= spec.height <= 4096:
         raise ConfigError(f"scene '{n}': 'width'/'height' must be in [16, 4096]")
+    for pack in spec.assets.packs:
+        if not (Path(pack) / "manifest.yaml").is_file():
+            raise ConfigError(f"scene '{n}': 'assets.packs': {pack} is not an asset pack (no manifest.yaml)")
+    if not spec.assets.procedural and not spec.assets.packs:
+        raise ConfigError(f"scene '{n}': 'assets.procedural' is false and no pack is given: no objects to place")
 
 
 @dataclass
@@ -234,17 +253,40 @@ class SuiteSpec:
 
 
 def load_suite(path: Path | str) -> SuiteSpec:
-    """Read and fully validate a suite YAML (every scene spec is checked here, before generation)."""
+    """Read and fully validate a suite YAML (every scene spec is checked here, before generation).
+
+    Relative asset pack paths are taken relative to the suite file and made absolute."""
     data = config.load_yaml(path)
     try:
         suite = config.from_dict(SuiteSpec, data)
+        base = Path(path).resolve().parent
+        for raw in [suite.defaults, *suite.scenes]:
+            assets = raw.get("assets") if isinstance(raw, dict) else None
+            if isinstance(assets, dict) and isinstance(assets.get("packs"), list):
+                assets["packs"] = [str(base / p) if isinstance(p, str) else p for p in assets["packs"]]
         suite.scene_specs()
     except ConfigError as e:
         raise ConfigError(f"{path}: {e}") from None
     return suite
 
 
+def spec_record(spec: SceneSpec) -> dict:
+    """The spec as scene.json records it and :func:`spec_hash` hashes it: asset packs as their name and
+    content fingerprint (not where they lie on disk), and no ``assets`` key for a procedural scene, so
+    specs that predate packs keep their hash."""
+    from generators.asset_packs import load_manifest, pack_fingerprint
+
+    record = config.to_dict(spec)
+    if spec.assets == AssetsSpec():
+        del record["assets"]
+    else:
+        record["assets"]["packs"] = [
+            {"name": load_manifest(p).name, "sha256": pack_fingerprint(p)} for p in spec.assets.packs
+        ]
+    return record
+
+
 def spec_hash(spec: SceneSpec) -> str:
     """Stable short hash of everything that determines a scene's content: the spec and the generator version."""
-    payload = json.dumps({"generator": GENERATOR_VERSION, "spec": config.to_dict(spec)}, sort_keys=True).encode()
+    payload = json.dumps({"generator": GENERATOR_VERSION, "spec": spec_record(spec)}, sort_keys=True).encode()
     return hashlib.sha256(payload).hexdigest()[:16]

@@ -34,6 +34,12 @@ class Part:
     material: str
     rgb: tuple[float, float, float]
     texture_seed: int
+    image: np.ndarray | None = None
+    """uint8 (H, W, 3) image texture (an asset pack's), mapped by :attr:`uv`; None: the procedural
+    texture of ``material`` tinted by ``rgb``, projected along the faces' normals."""
+    uv: np.ndarray | None = None
+    """(V, 2) texture coordinates of the mesh's vertices for :attr:`image` (OpenGL: v = 0 at the
+    image's bottom row)."""
 
 
 @dataclass

@@ -56,6 +56,12 @@ def scene_spec(scene: Scene) -> SceneSpec:
     raw = scene.info.get("spec")
     if not isinstance(raw, dict):
         raise DataError(scene.root / "scene.json", "no generator spec: the environments need a generated scene")
+    packs = (raw.get("assets") or {}).get("packs") if isinstance(raw.get("assets"), dict) else None
+    if packs:  # scene.json records packs by content, not by where they lie: the layout cannot be rebuilt
+        names = ", ".join(str(p.get("name")) if isinstance(p, dict) else str(p) for p in packs)
+        raise DataError(
+            scene.root / "scene.json", f"made with asset packs ({names}): the environments need procedural scenes"
+        )
     spec = config.from_dict(SceneSpec, raw, "spec")
     if spec_hash(spec) != scene.spec_hash:
         raise DataError(

@@ -48,14 +48,17 @@ class OfflineDescriber(Describer):
         self,
         encoder: ImageTextEncoder | None = None,
         nouns: list[str] | None = None,
+        extra_nouns: list[str] | None = None,
         context_weight: float = 0.3,
         context_scale: float = 3.0,
         material_margin: float = 0.01,
     ):
-        """``context_weight``: share of the context-crop embedding in the noun query; ``context_scale``:
+        """``nouns``: the noun vocabulary (default :data:`~vocabulary.OBJECT_NOUNS`); ``extra_nouns``: nouns
+        added to it, e.g. an asset pack's categories (``openreloc-bench assets`` prints them);
+        ``context_weight``: share of the context-crop embedding in the noun query; ``context_scale``:
         context crop side / object box side; ``material_margin``: similarity gain needed to add a material."""
         self.encoder = encoder if encoder is not None else create_encoder("offline")
-        self.nouns = list(nouns or voc.OBJECT_NOUNS)
+        self.nouns = list(dict.fromkeys([*(nouns or voc.OBJECT_NOUNS), *(extra_nouns or ())]))
         if not self.nouns:
             raise ConfigError("offline describer: the noun vocabulary is empty")
         self.context_weight, self.context_scale, self.material_margin = context_weight, context_scale, material_margin

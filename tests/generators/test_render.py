@@ -143,7 +143,7 @@ def test_culling_is_exact(monkeypatch) -> None:
         with create_renderer(layout, "mujoco", W, H) as r:
             culled = [r.render(T, K, W, H) for T in poses]
             drawn = [(r._cull(T, K, W, H), (r.model.geom_rgba[:, 3] > 0).mean())[1] for T in poses]
-            monkeypatch.setattr(r, "_visible_rooms", lambda *a: None)
+            monkeypatch.setattr(r._culler, "_visible_rooms", lambda *a: None)
             for T, (rgb, depth, inst) in zip(poses, culled):
                 rgb2, depth2, inst2 = r.render(T, K, W, H)
                 assert np.array_equal(rgb, rgb2) and np.array_equal(inst, inst2) and np.array_equal(depth, depth2)

@@ -66,6 +66,15 @@ class _TextCounter(_Spy):
         return self.enc.encode_texts(texts)
 
 
+def test_extra_nouns_join_the_vocabulary(clip_encoder) -> None:
+    """An asset pack's categories reach the describer: a red patch is described as the only noun."""
+    d = create_describer("offline", encoder=clip_encoder, extra_nouns=["storage crate", "chair"])
+    assert d.nouns[-1] == "storage crate" and d.nouns.count("chair") == 1
+    img, mask = _image()
+    only = create_describer("offline", encoder=clip_encoder, nouns=["tomato"], extra_nouns=["storage crate"])
+    assert only.describe(img, mask).endswith((" tomato", " storage crate"))
+
+
 def test_prepared_offline_describer_encodes_no_text_per_query(clip_encoder) -> None:
     """The vocabulary tables are built when a map loads (``prepare``), not in the first queries."""
     img, mask = _image()

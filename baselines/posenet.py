@@ -20,7 +20,6 @@ a pose is always returned.
 from __future__ import annotations
 
 import dataclasses
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -111,6 +110,12 @@ class PoseNetConfig:
         )
 
 
+def _network_config(cfg: Any) -> Any:
+    """What a map must agree on with the method loading it: all but where it trained (a map trained
+    on a GPU localizes on a CPU)."""
+    return {k: v for k, v in cfg.items() if k not in ("device", "threads")} if isinstance(cfg, dict) else cfg
+
+
 class PoseRegressor(nn.Module):
     """Backbone -> global average pool -> FC -> ReLU -> dropout -> (centre, quaternion)."""
 
@@ -185,24 +190,19 @@ class PoseNet:
         centres, quats = pose_targets(mapping.poses)
         t_mean = centres.mean(axis=0)
         t_scale = float(max(np.sqrt(((centres - t_mean) ** 2).sum(axis=1).mean()), 1e-3))
-        t0 = time.perf_counter()
-        with torch_threads(c.threads):
-            net, history = self._train(images, (centres - t_mean) / t_scale, quats)
-        seconds = time.perf_counter() - t0
+        cuda = [torch.cuda.current_device()] if c.device == "cuda" else []
+        with torch_threads(c.threads), torch.random.fork_rng(devices=cuda):  # seeds without touching the caller's RNG
+            net, final = self._train(images, (centres - t_mean) / t_scale, quats)
         arrays = {_WEIGHT_PREFIX + k: v.detach().cpu().numpy() for k, v in net.state_dict().items()}
         arrays.update(t_mean=t_mean, t_scale=np.array([t_scale], np.float32))
-        meta = {
-            "config": dataclasses.asdict(c),
-            "frames": len(mapping),
-            "train_seconds": round(seconds, 1),
-            "final": history[-1],
-        }
+        meta = {"config": dataclasses.asdict(c), "frames": len(mapping), "final": final}
         mapfile.write_arrays(map_dir, MAP_FORMAT, MAP_VERSION, arrays, meta)
 
     def _train(
         self, images: np.ndarray, centres: np.ndarray, quats: np.ndarray
-    ) -> tuple[PoseRegressor, list[dict[str, float]]]:
-        """Train on (N, H', W', 3) uint8 frames and their normalised centres and quaternions."""
+    ) -> tuple[PoseRegressor, dict[str, float]]:
+        """Train on (N, H', W', 3) uint8 frames and their normalised centres and quaternions; returns the
+        network and its last step's loss terms."""
         c = self.config
         device = torch.device(c.device)
         torch.manual_seed(c.seed)
@@ -217,8 +217,7 @@ class PoseNet:
         x_all = torch.from_numpy(images)  # uint8, cropped per batch before conversion
         t_all, q_all = torch.from_numpy(centres).to(device), torch.from_numpy(quats).to(device)
         h, w = images.shape[1:3]
-        history: list[dict[str, float]] = []
-        for step in tqdm(range(c.steps), desc="posenet training", leave=False):
+        for _ in tqdm(range(c.steps), desc="posenet training", leave=False):
             idx = torch.randint(len(images), (min(c.batch_size, len(images)),), generator=gen)
             ys = torch.randint(h - c.input_height + 1, (len(idx),), generator=gen).tolist()
             xs = torch.randint(w - c.input_width + 1, (len(idx),), generator=gen).tolist()
@@ -234,20 +233,17 @@ class PoseNet:
             loss.backward()
             opt.step()
             sched.step()
-            if step == c.steps - 1 or step % 100 == 0:  # a coarse training curve, kept in meta.json
-                values = (loss, l_x, l_q, s[0], s[1])
-                history.append({"step": step, **{k: round(v.item(), 5) for k, v in zip(LOSS_TERMS, values)}})
-        return net.eval(), history
+        values = (loss, l_x, l_q, s[0], s[1])
+        return net.eval(), {k: round(v.item(), 5) for k, v in zip(LOSS_TERMS, values)}
 
     # ---------------------------------------------------------------------------------- query
 
     def load_map(self, map_dir: Path) -> None:
         arrays, meta = mapfile.read_arrays(map_dir, MAP_FORMAT, MAP_VERSION)
         meta_path, arrays_path = Path(map_dir) / mapfile.META, Path(map_dir) / mapfile.ARRAYS
-        if meta.get("config") != dataclasses.asdict(self.config):
-            raise DataError(
-                meta_path, f"map built with {meta.get('config')}, this method has {dataclasses.asdict(self.config)}"
-            )
+        built, own = _network_config(meta.get("config")), _network_config(dataclasses.asdict(self.config))
+        if built != own:
+            raise DataError(meta_path, f"map built with {built}, this method has {own}")
         net = PoseRegressor(self.config, pretrained=False)
         state = {
             k[len(_WEIGHT_PREFIX) :]: torch.from_numpy(v) for k, v in arrays.items() if k.startswith(_WEIGHT_PREFIX)

@@ -101,12 +101,20 @@ class ImageRetrieval:
         if meta.get("encoder") != encoder_fingerprint():
             raise DataError(meta_path, "map built with other image encoder weights than this installation's")
         database, poses = arrays.get("descriptors"), arrays.get("poses")
-        if database is None or poses is None or database.ndim != 2 or poses.shape != (len(database), 4, 4):
-            raise DataError(
-                Path(map_dir) / mapfile.ARRAYS, "malformed map arrays (descriptors (N, D), poses (N, 4, 4))"
-            )
         cfg = self.config.descriptor
-        self._describer = GlobalDescriptor(cfg, Vlad.from_arrays(arrays) if cfg.kind.endswith("vlad") else None)
+        vlad = Vlad.from_arrays(arrays) if cfg.kind.endswith("vlad") and "vlad_centres" in arrays else None
+        if (
+            database is None
+            or poses is None
+            or database.ndim != 2
+            or poses.shape != (len(database), 4, 4)
+            or (cfg.kind.endswith("vlad") and (vlad is None or vlad.centres.size != database.shape[1]))
+        ):
+            raise DataError(
+                Path(map_dir) / mapfile.ARRAYS,
+                "malformed map arrays (descriptors (N, D), poses (N, 4, 4), VLAD centres of D values)",
+            )
+        self._describer = GlobalDescriptor(cfg, vlad)
         self._database, self._poses = database.astype(np.float32), poses
 
     def localize(self, query: QueryFrame) -> PoseEstimate:
@@ -116,7 +124,7 @@ class ImageRetrieval:
         with single_threaded():
             q = self._describer.describe(query.color)
             scores = self._database @ q
-        best = top_k(self._database, q, c.top_k)
+            best = top_k(self._database, q, c.top_k)
         used = best
         if c.interpolation_radius_m is not None:
             near = np.linalg.norm(self._poses[best, :3, 3] - self._poses[best[0], :3, 3], axis=1)

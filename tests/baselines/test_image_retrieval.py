@@ -101,3 +101,16 @@ def test_grid_pooling_is_unit_norm_per_layout() -> None:
 def test_config_validation(overrides: dict) -> None:
     with pytest.raises(ConfigError, match=NAME):
         create_method(NAME, **overrides)
+
+
+def test_malformed_arrays_are_one_line_errors(built_map: Callable[[str], Path], tmp_path: Path) -> None:
+    arrays, meta = mapfile.read_arrays(built_map(NAME), MAP_FORMAT, MAP_VERSION)
+    meta = {k: v for k, v in meta.items() if k not in ("format", "version")}
+    for name, damaged in (
+        ("poses", {**arrays, "poses": arrays["poses"][1:]}),
+        ("centres", {**arrays, "vlad_centres": arrays["vlad_centres"][1:]}),
+    ):
+        mapfile.write_arrays(tmp_path / name, MAP_FORMAT, MAP_VERSION, damaged, meta)
+        with pytest.raises(DataError, match="arrays.npz: malformed map arrays") as err:
+            contract.loaded(NAME, tmp_path / name)
+        assert "\n" not in str(err.value)

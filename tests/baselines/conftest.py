@@ -35,15 +35,22 @@ def scenes(tmp_path_factory: pytest.TempPathFactory) -> tuple[Scene, Scene]:
     )
 
 
+CHEAP: dict[str, dict] = {
+    "posenet": {"steps": 10, "batch_size": 4, "input_width": 48, "input_height": 36, "hidden": 32}
+}
+"""Per method, settings that make its default map fast enough for unit tests (a short training)."""
+
+
 @pytest.fixture(scope="session")
 def built_map(scenes: tuple[Scene, Scene], tmp_path_factory: pytest.TempPathFactory) -> Callable[[str], Path]:
-    """``built_map(method name)``: the directory of that method's default map of the first room, built once."""
+    """``built_map(method name)``: the directory of that method's map of the first room (default
+    settings, or :data:`CHEAP` ones), built once."""
     maps: dict[str, Path] = {}
 
     def build(name: str) -> Path:
         if name not in maps:
             maps[name] = tmp_path_factory.mktemp(name)
-            create_method(name).build_map(scenes[0].sequence("mapping"), maps[name])
+            create_method(name, **CHEAP.get(name, {})).build_map(scenes[0].sequence("mapping"), maps[name])
         return maps[name]
 
     return build

@@ -1,4 +1,5 @@
-"""Checks every structure-based baseline passes (run for each by test_contract.py)."""
+"""Checks every baseline passes (run for each by test_contract.py); ``overrides`` are the settings
+its test map was built with."""
 
 from __future__ import annotations
 
@@ -12,10 +13,11 @@ from openreloc_bench import geometry
 from openreloc_bench.data.scene import Scene
 from openreloc_bench.errors import DataError
 from openreloc_bench.methods import Failure, PoseEstimate, QueryFrame, Relocalizer, available_methods, create_method
+from tests.baselines.conftest import CHEAP
 
 
 def loaded(name: str, map_dir: Path, **overrides: object) -> Relocalizer:
-    method = create_method(name, **overrides)
+    method = create_method(name, **{**CHEAP.get(name, {}), **overrides})
     method.load_map(map_dir)
     return method
 

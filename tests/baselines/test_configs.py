@@ -20,6 +20,10 @@ BAD = [
     ("goreloc", {"detection": {"min_score": 2.0}}),
     ("goreloc", {"ransac": {"iterations": -1}}),
     ("goreloc", {"mapping": {"ellipsoid_trim": 0.7}}),
+    ("retrieval", {"top_k": 0}),
+    ("retrieval", {"descriptor": {"grid": 0}}),
+    ("posenet", {"steps": 0}),
+    ("posenet", {"backbone": "resnet50"}),
 ]
 
 

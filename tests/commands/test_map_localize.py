@@ -6,11 +6,12 @@ from pathlib import Path
 
 import pytest
 
+from baselines.nearest_frame import NearestFrame
 from openreloc_bench.cli import main
 from openreloc_bench.config import parse_overrides
 from openreloc_bench.data.results import read_results
 from openreloc_bench.errors import ConfigError
-from openreloc_bench.methods import Failure, NearestFrame, register
+from openreloc_bench.methods import Failure, register
 from tests.conftest import write_tiny_scene
 
 

@@ -9,6 +9,7 @@ import pytest
 from openreloc_bench.harness import runner
 from openreloc_bench.harness.runner import EvalConfig, MethodRun
 from openreloc_bench.methods import available_methods
+from tests.baselines.conftest import CHEAP
 
 
 @pytest.mark.parametrize("name", sorted(n for n in available_methods() if not n.startswith("test-")))
@@ -35,7 +36,7 @@ def test_the_predicted_track_gives_no_method_an_instance_image(
 
     monkeypatch.setattr(runner, "create_method", spy)
     cfg = EvalConfig(
-        data=data_dir, out=tmp_path, scenes=["sA"], runs=[MethodRun(name, name)], track="predicted",
+        data=data_dir, out=tmp_path, scenes=["sA"], runs=[MethodRun(name, name, CHEAP.get(name, {}))], track="predicted",
         timeout_s=0, map_timeout_s=0,
     )  # fmt: skip
     runner.evaluate(cfg)

@@ -43,7 +43,7 @@ def test_a_windows_edited_submission_scores_as_the_clean_one(world: World, capsy
 
 
 def test_an_interrupted_map_build_leaves_nothing_to_mistake_for_a_map(world: World, capsys, monkeypatch) -> None:
-    from openreloc_bench.methods import NearestFrame
+    from baselines.nearest_frame import NearestFrame
 
     def interrupted(self, mapping, map_dir) -> None:
         (map_dir / "thumbs.npz").write_bytes(b"half")

@@ -43,6 +43,18 @@ FORMATS = {
 }
 
 
+TRACK_TITLES = {
+    "predicted": "Predicted track (headline): no instance image anywhere, each method segments for itself",
+    "oracle-mask": "Oracle-mask track (upper bound): each query carries the dataset's instance masks",
+}
+"""The tracks in the order the board shows them, with the heading of each one's table."""
+
+
+def _track_rank(track: pd.Series) -> pd.Series:
+    order = list(TRACK_TITLES)
+    return track.map(lambda t: order.index(t) if t in order else len(order))
+
+
 BOARD_INPUT_COLUMNS = (*SCENE_KEYS, *QUERY_COLUMNS, "map_hash", "config_hash", "spec_hash", "git_commit")
 """What the board reads of each results directory's ``tables/queries.csv``."""
 
@@ -77,13 +89,20 @@ def _fmt(col: str, v: object) -> str:
 
 
 def board(suite: pd.DataFrame) -> pd.DataFrame:
-    """The leaderboard rows: best Recall@25cm first within each (track, split)."""
+    """The leaderboard rows: the predicted track first, then the oracle-mask track; best Recall@25cm first
+    within each (track, split)."""
     cols = [c for c in BOARD_COLUMNS if c in suite]
-    b = suite.sort_values(["track", "split", "recall_25cm", "recall_50cm"], ascending=[True, True, False, False])
+    b = suite.assign(_rank=_track_rank(suite["track"]))
+    b = b.sort_values(["_rank", "split", "recall_25cm", "recall_50cm"], ascending=[True, True, False, False])
     b = b[cols].copy()
     b[["latency_median_s", "latency_p90_s"]] *= 1000.0  # shown in ms
     b["git_commit"] = b["git_commit"].astype(str).str.slice(0, 12)
     return b
+
+
+def _by_track(b: pd.DataFrame) -> list[tuple[str, pd.DataFrame]]:
+    """The board's rows cut into one table per track, in the board's order, each with its heading."""
+    return [(TRACK_TITLES.get(track, f"{track} track"), t) for track, t in b.groupby("track", sort=False)]
 
 
 def to_markdown(b: pd.DataFrame, scenes: pd.DataFrame) -> str:
@@ -92,12 +111,12 @@ def to_markdown(b: pd.DataFrame, scenes: pd.DataFrame) -> str:
         "# openreloc-bench leaderboard",
         "",
         "Recall = share of all queries (failures count); MTE/MRE = mean error of the queries within the threshold.",
-        "",
-        "| " + " | ".join(head) + " |",
-        "|" + "---|" * len(head),
     ]
-    lines += ["| " + " | ".join(_fmt(c, r[c]) for c in b.columns) + " |" for _, r in b.iterrows()]
-    for (track, split), t in scenes.groupby(["track", "split"]):
+    for title, t in _by_track(b):
+        lines += ["", f"## {title}", "", "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+        lines += ["| " + " | ".join(_fmt(c, r[c]) for c in b.columns) + " |" for _, r in t.iterrows()]
+    scenes = scenes.assign(_rank=_track_rank(scenes["track"])).sort_values(["_rank", "split"], kind="stable")
+    for (track, split), t in scenes.groupby(["track", "split"], sort=False):
         rows = [(m, {"method": m}) for m in b[(b.track == track) & (b.split == split)]["method"]]
         lines += [
             "",
@@ -130,8 +149,15 @@ document.querySelectorAll('table.sortable th').forEach((th, i) => th.addEventLis
 
 def to_html(b: pd.DataFrame, plots: list[str]) -> str:
     head = "".join(f"<th>{html.escape(BOARD_COLUMNS[c])}</th>" for c in b.columns)
-    rows = "".join(
-        "<tr>" + "".join(f"<td>{html.escape(_fmt(c, r[c]))}</td>" for c in b.columns) + "</tr>" for _, r in b.iterrows()
+    tables = "".join(
+        f"<h2>{html.escape(title)}</h2>\n"
+        f'<table class="sortable"><thead><tr>{head}</tr></thead><tbody>'
+        + "".join(
+            "<tr>" + "".join(f"<td>{html.escape(_fmt(c, r[c]))}</td>" for c in b.columns) + "</tr>"
+            for _, r in t.iterrows()
+        )
+        + "</tbody></table>\n"
+        for title, t in _by_track(b)
     )
     imgs = "".join(f'<figure><img src="{html.escape(p)}" alt="{html.escape(p)}"></figure>' for p in plots)
     return f"""<!doctype html>
@@ -149,8 +175,7 @@ img {{ max-width: 48%; float: left; margin: 1%; }}
 <h1>openreloc-bench leaderboard</h1>
 <p>Recall = share of all queries (failed queries count). MTE/MRE = mean error of the queries within the
 threshold. Click a column header to sort.</p>
-<table class="sortable"><thead><tr>{head}</tr></thead><tbody>{rows}</tbody></table>
-{imgs}
+{tables}{imgs}
 <script>{_SORT_JS}</script>
 </body></html>
 """

@@ -41,6 +41,8 @@ class NearestFrame:
     """
 
     name = "nearest-frame"
+    uses_instance_masks = False
+    """Never reads a mask: its maps and results serve both tracks."""
     map_format = ("nearest-frame-map", 1)
 
     def __init__(self, **overrides: Any):

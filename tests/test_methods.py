@@ -7,6 +7,7 @@ from openreloc_bench.methods import (
     available_methods,
     create_method,
     register,
+    uses_instance_masks,
 )
 
 
@@ -29,3 +30,8 @@ def test_unknown_config_key():
 def test_in_process_registration():
     register("test-identity", NearestFrame)
     assert isinstance(create_method("test-identity"), NearestFrame)
+
+
+def test_methods_read_masks_unless_they_say_otherwise() -> None:
+    assert uses_instance_masks("openreloc") and uses_instance_masks("no-such-method")
+    assert not uses_instance_masks("nearest-frame")

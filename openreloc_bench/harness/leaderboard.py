@@ -43,6 +43,9 @@ FORMATS = {
 }
 
 
+MASK_FREE = "mask-free"
+"""The track the board gives the runs of methods that read no masks (``uses_instance_masks = False``):
+their maps and answers are the same on both tracks, so their rows stand in both tables."""
 TRACK_TITLES = {
     "predicted": "Predicted track (headline): no instance image anywhere, each method segments for itself",
     "oracle-mask": "Oracle-mask track (upper bound): each query carries the dataset's instance masks",
@@ -101,8 +104,26 @@ def board(suite: pd.DataFrame) -> pd.DataFrame:
 
 
 def _by_track(b: pd.DataFrame) -> list[tuple[str, pd.DataFrame]]:
-    """The board's rows cut into one table per track, in the board's order, each with its heading."""
-    return [(TRACK_TITLES.get(track, f"{track} track"), t) for track, t in b.groupby("track", sort=False)]
+    """The board's rows cut into one table per track, in the board's order, each with its heading; the
+    mask-free methods' rows stand in every track's table (alone when no method ran on a track)."""
+    free = b[b["track"] == MASK_FREE]
+    tables = []
+    for track, t in b[b["track"] != MASK_FREE].groupby("track", sort=False):
+        t = pd.concat([t, free]).sort_values(["split", "recall_25cm", "recall_50cm"], ascending=[True, False, False])
+        tables.append((TRACK_TITLES.get(track, f"{track} track"), t))
+    if not tables and not free.empty:
+        tables.append(("Methods that read no masks (the same on both tracks)", free))
+    return tables
+
+
+def mask_free_as_own_track(q: pd.DataFrame) -> pd.DataFrame:
+    """The queries of methods that read no masks under the track :data:`MASK_FREE`, one run per query
+    (the last, when they were run on both tracks)."""
+    from openreloc_bench.methods import uses_instance_masks
+
+    free = [m for m in q["method"].unique() if not uses_instance_masks(m)]
+    q = q.assign(track=q["track"].mask(q["method"].isin(free), MASK_FREE))
+    return q.drop_duplicates(["method", "track", "scene", "split", "query"], keep="last")
 
 
 def to_markdown(b: pd.DataFrame, scenes: pd.DataFrame) -> str:
@@ -246,7 +267,7 @@ def plot_topdown(q: pd.DataFrame, scene: str, path: Path) -> None:
 
 def write_leaderboard(results: list[Path], out: Path) -> list[Path]:
     """Render everything into ``out`` (never inside or around a results directory); returns the files written."""
-    q = pool_seeds(load_queries(results))
+    q = pool_seeds(mask_free_as_own_track(load_queries(results)))
     for r in results:
         paths.check_output(out, [r], "--out")
     scenes, suite = build_tables(q, load_maps(results))

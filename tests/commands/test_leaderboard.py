@@ -59,16 +59,17 @@ def test_leaderboard_merges_eval_and_score_results(results: tuple[Path, Path], c
     board = pd.read_csv(out / "leaderboard.csv")
     assert set(board["method"]) == {"test-oracle", "nearest-frame", "outside"}
     md = (out / "leaderboard.md").read_text()
-    lines = [ln for ln in md.splitlines() if ln.startswith(("| test-oracle |", "| nearest-frame |"))]
+    oracle = md.split("## Oracle-mask track")[1].split("## Per scene")[0]
+    lines = [ln for ln in oracle.splitlines() if ln.startswith(("| test-oracle |", "| nearest-frame |"))]
     assert lines[0].startswith("| test-oracle")  # sorted by Recall@25cm within (track, split)
     assert md.index("| outside | predicted |") < md.index("| test-oracle | oracle-mask |")  # score's default track
     assert "## Per scene: query" in md and "| outside | 100 / 0 |" in md
     sizes = md.split("## Map size per scene [MB]")[1]  # the maps the eval built; a submission has none
-    assert "| test-oracle | oracle-mask |" in sizes and "| nearest-frame | oracle-mask |" in sizes
+    assert "| test-oracle | oracle-mask |" in sizes and "| nearest-frame | mask-free |" in sizes
     assert "outside" not in sizes and "| s1 | s2 |" in sizes
     page = (out / "index.html").read_text()
     assert '<table class="sortable">' in page and "addEventListener('click'" in page
-    assert page.count("<tr>") == len(board) + 2  # a header row per track
+    assert page.count("<tr>") == len(board) + 1 + 2  # nearest-frame reads no masks: in both tables; a header each
     for name in ("cumulative_translation", "cumulative_rotation", "recall_per_scene", "topdown_s1", "topdown_s2"):
         png = out / "plots" / f"{name}.png"
         assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and f"plots/{name}.png" in page
@@ -116,10 +117,13 @@ def test_leaderboard_heads_with_the_predicted_track(results: tuple[Path, Path], 
     args = ["eval", "--scenes", "s1", "--data", str(data), "--out", str(pred), "--timeout", "0"]
     assert main([*args, "--methods", "nearest-frame", "--track", "predicted"]) == 0
     out = tmp_path / "board"
-    assert main(["leaderboard", str(root / "res"), str(pred), "--out", str(out)]) == 0
+    assert main(["leaderboard", str(root / "res"), str(root / "scores"), str(pred), "--out", str(out)]) == 0
     md = (out / "leaderboard.md").read_text()
     head, oracle = md.index("## Predicted track (headline)"), md.index("## Oracle-mask track (upper bound)")
-    assert head < md.index("| nearest-frame | predicted |") < oracle < md.index("| test-oracle | oracle-mask |")
+    assert head < md.index("| outside | predicted |") < oracle < md.index("| test-oracle | oracle-mask |")
+    # nearest-frame reads no masks: one row per split, standing in both tables (the last run of it)
+    free = [i for i, ln in enumerate(md.splitlines()) if ln.startswith("| nearest-frame | mask-free | query |")]
+    assert len(free) == 2 and "| nearest-frame | predicted |" not in md and "| nearest-frame | oracle-mask |" not in md
     assert md.index("## Per scene: query (predicted track)") < md.index("## Per scene: query (oracle-mask track)")
     page = (out / "index.html").read_text()
     assert page.count('<table class="sortable">') == 2 and page.index("Predicted track") < page.index("Oracle-mask")

@@ -67,8 +67,6 @@ class ImageRetrieval:
     """Global-descriptor retrieval with best-frame or interpolated poses (see the module doc)."""
 
     name = "retrieval"
-    uses_instance_masks = False
-    """Never reads a mask: its maps and results serve both tracks."""
     uses_masks = False
     """Query instance masks (oracle-mask track) are never read."""
 

@@ -41,7 +41,7 @@ class NearestFrame:
     """
 
     name = "nearest-frame"
-    uses_instance_masks = False
+    uses_masks = False
     """Never reads a mask: its maps and results serve both tracks."""
     map_format = ("nearest-frame-map", 1)
 

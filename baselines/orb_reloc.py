@@ -130,8 +130,6 @@ class OrbReloc:
     """ORB-SLAM2's relocalization (see the module doc)."""
 
     name = "orb-reloc"
-    uses_instance_masks = False
-    """Never reads a mask: its maps and results serve both tracks."""
     uses_masks = False
     """Query instance masks (oracle-mask track) are never read."""
 

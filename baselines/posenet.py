@@ -158,8 +158,6 @@ class PoseNet:
     """A per-scene absolute pose regressor (see the module doc)."""
 
     name = "posenet"
-    uses_instance_masks = False
-    """Never reads a mask: its maps and results serve both tracks."""
     uses_masks = False
     """Query instance masks (oracle-mask track) are never read."""
 

@@ -67,8 +67,6 @@ class SiftPnP:
     """SIFT + VLAD retrieval + ratio-test matching + pycolmap LO-RANSAC (see the module doc)."""
 
     name = "sift-pnp"
-    uses_instance_masks = False
-    """Never reads a mask: its maps and results serve both tracks."""
     uses_masks = False
     """Query instance masks (oracle-mask track) are never read."""
 

@@ -99,14 +99,14 @@ def _lazy(ep: Any) -> Callable[..., Relocalizer]:
     return factory
 
 
-def uses_instance_masks(name: str) -> bool:
-    """Whether the registered method ``name`` reads instance masks: its class's ``uses_instance_masks``
+def uses_masks(name: str) -> bool:
+    """Whether the registered method ``name`` reads instance masks: its class's ``uses_masks``
     (True when it does not say, or for a name no method is registered under). The harness builds the
     maps of methods that do not from no masks, and they serve both tracks."""
     if name in _REGISTRY:
-        return bool(getattr(_REGISTRY[name], "uses_instance_masks", True))
+        return bool(getattr(_REGISTRY[name], "uses_masks", True))
     for ep in entry_points(group=ENTRY_POINT_GROUP, name=name):
-        return bool(getattr(ep.load(), "uses_instance_masks", True))
+        return bool(getattr(ep.load(), "uses_masks", True))
     return True
 
 

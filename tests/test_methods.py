@@ -7,7 +7,7 @@ from openreloc_bench.methods import (
     available_methods,
     create_method,
     register,
-    uses_instance_masks,
+    uses_masks,
 )
 
 
@@ -33,5 +33,5 @@ def test_in_process_registration():
 
 
 def test_methods_read_masks_unless_they_say_otherwise() -> None:
-    assert uses_instance_masks("openreloc") and uses_instance_masks("no-such-method")
-    assert not uses_instance_masks("nearest-frame")
+    assert uses_masks("openreloc") and uses_masks("no-such-method")
+    assert not uses_masks("nearest-frame")

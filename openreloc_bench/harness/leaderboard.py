@@ -44,7 +44,7 @@ FORMATS = {
 
 
 MASK_FREE = "mask-free"
-"""The track the board gives the runs of methods that read no masks (``uses_instance_masks = False``):
+"""The track the board gives the runs of methods that read no masks (``uses_masks = False``):
 their maps and answers are the same on both tracks, so their rows stand in both tables."""
 TRACK_TITLES = {
     "predicted": "Predicted track (headline): no instance image anywhere, each method segments for itself",
@@ -119,9 +119,9 @@ def _by_track(b: pd.DataFrame) -> list[tuple[str, pd.DataFrame]]:
 def mask_free_as_own_track(q: pd.DataFrame) -> pd.DataFrame:
     """The queries of methods that read no masks under the track :data:`MASK_FREE`, one run per query
     (the last, when they were run on both tracks)."""
-    from openreloc_bench.methods import uses_instance_masks
+    from openreloc_bench.methods import uses_masks
 
-    free = [m for m in q["method"].unique() if not uses_instance_masks(m)]
+    free = [m for m in q["method"].unique() if not uses_masks(m)]
     q = q.assign(track=q["track"].mask(q["method"].isin(free), MASK_FREE))
     return q.drop_duplicates(["method", "track", "scene", "split", "query"], keep="last")
 

@@ -430,8 +430,8 @@ class EvalReport:
 
 def map_track(method: Relocalizer, track: str) -> str:
     """Which masks a method's map is built from: the track's, or none for methods that ignore masks
-    (``uses_instance_masks = False``), whose maps then serve both tracks."""
-    return track if getattr(method, "uses_instance_masks", True) else "mask-free"
+    (``uses_masks = False``), whose maps then serve both tracks."""
+    return track if getattr(method, "uses_masks", True) else "mask-free"
 
 
 def plan(cfg: EvalConfig) -> tuple[list[MapJob], list[QueryJob]]:

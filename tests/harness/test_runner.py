@@ -81,6 +81,13 @@ def test_maps_are_cached_by_config_and_spec(data_dir: Path, tmp_path: Path) -> N
     assert len(list((tmp_path / "maps" / "test-oracle").iterdir())) == 2  # one folder per map config
 
 
+def test_maps_of_mask_free_methods_serve_both_tracks(data_dir: Path, tmp_path: Path) -> None:
+    free, masked = MethodRun("nearest-frame", "nearest-frame", {}), MethodRun("test-oracle", "test-oracle", {})
+    assert runner.evaluate(cfg(data_dir, tmp_path, [free, masked])).maps_built == 4
+    predicted = runner.evaluate(cfg(data_dir, tmp_path, [free, masked], track="predicted"))
+    assert (predicted.maps_built, predicted.maps_cached) == (2, 2)  # test-oracle reads masks: maps of its own
+
+
 def test_raise_failure_and_hang_fail_one_query_each_and_the_run_goes_on(data_dir: Path, tmp_path: Path) -> None:
     run = MethodRun(
         "bad", "test-oracle", {"raise_on": "query/000000", "fail_on": "query/000001", "hang_on": "query/000002"}

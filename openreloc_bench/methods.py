@@ -21,6 +21,9 @@ from openreloc_bench.errors import ConfigError
 
 ENTRY_POINT_GROUP = "openreloc_bench.methods"
 TRACKS = ("oracle-mask", "predicted")
+MASK_FREE = "mask-free"
+"""What stands for the track where it makes no difference: the maps and results of methods that read no
+masks (``uses_masks = False``) serve both tracks."""
 """Oracle-mask: queries and mapping frames carry the dataset's instance masks (a perfect detector).
 Predicted: neither does; a method segments for itself."""
 

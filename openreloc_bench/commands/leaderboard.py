@@ -22,8 +22,7 @@ def run(args: argparse.Namespace) -> int:
     from openreloc_bench.harness.leaderboard import write_leaderboard  # matplotlib: only when used
 
     files = write_leaderboard(args.results, args.out)
-    print(
-        (args.out / "leaderboard.md").read_text().split("\n## Per scene")[0].rstrip()
-    )  # the board, one table per track
+    board = (args.out / "leaderboard.md").read_text().split("\n## Per scene")[0]  # one table per track
+    print(board.rstrip())
     print(f"wrote {len(files)} files to {args.out}")
     return 0

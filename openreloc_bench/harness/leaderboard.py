@@ -21,6 +21,7 @@ from openreloc_bench.errors import DataError  # noqa: E402
 from openreloc_bench.harness.metrics import cumulative_curve  # noqa: E402
 from openreloc_bench.harness.score import QUERY_COLUMNS  # noqa: E402
 from openreloc_bench.harness.tables import SCENE_KEYS, build_tables, paper_table, pool_seeds, read_query_csv  # noqa: E402
+from openreloc_bench.methods import MASK_FREE, uses_masks  # noqa: E402
 
 BOARD_COLUMNS = {
     "method": "Method", "track": "Track", "split": "Split", "n_scenes": "Scenes", "n_seeds": "Seeds", "n_queries": "Queries",
@@ -43,9 +44,6 @@ FORMATS = {
 }
 
 
-MASK_FREE = "mask-free"
-"""The track the board gives the runs of methods that read no masks (``uses_masks = False``):
-their maps and answers are the same on both tracks, so their rows stand in both tables."""
 TRACK_TITLES = {
     "predicted": "Predicted track (headline): no instance image anywhere, each method segments for itself",
     "oracle-mask": "Oracle-mask track (upper bound): each query carries the dataset's instance masks",
@@ -70,7 +68,10 @@ def load_queries(results: list[Path]) -> pd.DataFrame:
         if not path.is_file():
             raise DataError(r, "no tables/queries.csv (run 'openreloc-bench eval' or 'score' into it first)")
         frames.append(read_query_csv(path, BOARD_INPUT_COLUMNS))
-    q = pd.concat(frames, ignore_index=True)
+    return _last_run_per_query(pd.concat(frames, ignore_index=True))
+
+
+def _last_run_per_query(q: pd.DataFrame) -> pd.DataFrame:
     return q.drop_duplicates(["method", "track", "scene", "split", "query"], keep="last")
 
 
@@ -117,13 +118,10 @@ def _by_track(b: pd.DataFrame) -> list[tuple[str, pd.DataFrame]]:
 
 
 def mask_free_as_own_track(q: pd.DataFrame) -> pd.DataFrame:
-    """The queries of methods that read no masks under the track :data:`MASK_FREE`, one run per query
-    (the last, when they were run on both tracks)."""
-    from openreloc_bench.methods import uses_masks
-
+    """The queries of methods that read no masks under the track ``MASK_FREE``: their rows stand in both
+    tracks' tables, one run per query (the last, when they were run on both tracks)."""
     free = [m for m in q["method"].unique() if not uses_masks(m)]
-    q = q.assign(track=q["track"].mask(q["method"].isin(free), MASK_FREE))
-    return q.drop_duplicates(["method", "track", "scene", "split", "query"], keep="last")
+    return _last_run_per_query(q.assign(track=q["track"].mask(q["method"].isin(free), MASK_FREE)))
 
 
 def to_markdown(b: pd.DataFrame, scenes: pd.DataFrame) -> str:

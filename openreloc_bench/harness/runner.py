@@ -44,6 +44,7 @@ from openreloc_bench.harness.executors import exit_with, make_executor, mp_conte
 from openreloc_bench.harness.score import QUERY_COLUMNS, Outcome, score_split
 from openreloc_bench.harness.tables import read_query_csv
 from openreloc_bench.methods import (
+    MASK_FREE,
     TRACKS,
     Failure,
     PoseEstimate,
@@ -431,7 +432,7 @@ class EvalReport:
 def map_track(method: Relocalizer, track: str) -> str:
     """Which masks a method's map is built from: the track's, or none for methods that ignore masks
     (``uses_masks = False``), whose maps then serve both tracks."""
-    return track if getattr(method, "uses_masks", True) else "mask-free"
+    return track if getattr(method, "uses_masks", True) else MASK_FREE
 
 
 def plan(cfg: EvalConfig) -> tuple[list[MapJob], list[QueryJob]]:

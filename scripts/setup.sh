@@ -1,13 +1,14 @@
 #!/usr/bin/env bash
 # One-command set-up on a bare Debian machine (run as root, or with sudo available).
-# Installs the Debian packages for offscreen OpenGL (EGL, OSMesa fallback) and open3d, then a
+# Installs the Debian packages for offscreen OpenGL (EGL, OSMesa fallback), open3d and headless Chromium, then a
 # virtual environment at .venv/ with torch 2.13.0 (CPU) and this project. Idempotent: a second run
 # only checks and returns in seconds.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 EXTRAS="${OPENRELOC_EXTRAS:-dev}"
 
-debs=(libegl1 libgl1 libgl1-mesa-dri libegl-mesa0 libosmesa6 libusb-1.0-0 libgomp1)
+# chromium + its driver: the boards' screenshots and the test that sorts a board's column in a real browser
+debs=(libegl1 libgl1 libgl1-mesa-dri libegl-mesa0 libosmesa6 libusb-1.0-0 libgomp1 chromium chromium-driver)
 missing=()
 for p in "${debs[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -23,7 +23,7 @@ from openreloc_bench.data import paths
 from openreloc_bench.data.scene import QUERY_SPLITS
 from openreloc_bench.errors import ConfigError
 from openreloc_bench.harness import runner, tables
-from openreloc_bench.harness.ablations import ABLATED_METHOD, ABLATION_ROWS, ROBUSTNESS_ROWS, ablation_label
+from openreloc_bench.harness.ablations import ABLATED_METHOD, ROBUSTNESS_ROWS
 from openreloc_bench.harness.executors import EXECUTORS
 from openreloc_bench.harness.suites import ensure_suite_scenes
 
@@ -99,13 +99,7 @@ def method_runs(names: list[str], config_files: list[str], ablations: bool) -> l
         if name in overrides:
             raise ConfigError(f"--method-config names '{name}' twice; merge the settings into one file")
         overrides[name] = config.load_mapping(path)
-    runs = [runner.MethodRun(n, n, overrides.get(n, {})) for n in names]
-    if ablations:
-        base = overrides.get(ABLATED_METHOD, {})
-        runs += [runner.MethodRun(ablation_label(r), ABLATED_METHOD, {**base, **r.overrides}) for r in ABLATION_ROWS]
-        if ABLATED_METHOD not in names:
-            runs.append(runner.MethodRun(ABLATED_METHOD, ABLATED_METHOD, base))
-    return runs
+    return runner.variant_runs(names, overrides, ablations)
 
 
 def scene_names(entries: list[str], data: Path) -> list[str]:

@@ -10,6 +10,7 @@ import html
 from pathlib import Path
 
 import matplotlib
+import matplotlib.ticker
 
 matplotlib.use("Agg")  # headless: no display on benchmark machines
 import matplotlib.pyplot as plt  # noqa: E402
@@ -18,6 +19,7 @@ import pandas as pd  # noqa: E402
 
 from openreloc_bench.data import io, paths  # noqa: E402
 from openreloc_bench.errors import DataError  # noqa: E402
+from openreloc_bench.harness.ablations import ROBUSTNESS_ROWS  # noqa: E402
 from openreloc_bench.harness.metrics import cumulative_curve  # noqa: E402
 from openreloc_bench.harness.score import QUERY_COLUMNS  # noqa: E402
 from openreloc_bench.harness.tables import SCENE_KEYS, build_tables, paper_table, pool_seeds, read_query_csv  # noqa: E402
@@ -72,7 +74,10 @@ def load_queries(results: list[Path]) -> pd.DataFrame:
 
 
 def _last_run_per_query(q: pd.DataFrame) -> pd.DataFrame:
-    return q.drop_duplicates(["method", "track", "scene", "split", "query"], keep="last")
+    """One row per query of each run: the last (the seed, where runs over seeds are pooled, tells runs apart)."""
+    return q.drop_duplicates(
+        ["method", "track", "scene", "split", "query", *(["seed"] if "seed" in q else [])], keep="last"
+    )
 
 
 def load_maps(results: list[Path]) -> pd.DataFrame:
@@ -124,6 +129,28 @@ def mask_free_as_own_track(q: pd.DataFrame) -> pd.DataFrame:
     return _last_run_per_query(q.assign(track=q["track"].mask(q["method"].isin(free), MASK_FREE)))
 
 
+def robustness_drops(b: pd.DataFrame) -> pd.DataFrame:
+    """Per (method, track): recall on the plain query split and its change on every robustness split
+    (points of R@50cm / R@25cm; negative = lost), for the methods run on the query split and another."""
+    rows = []
+    for (method, track), g in b.groupby(["method", "track"], sort=False):
+        g = g.set_index("split")
+        if "query" not in g.index or len(g) < 2:
+            continue
+        base = g.loc["query"]
+        row = {"Method": method, "Track": track, "query": f"{base.recall_50cm:.1f} / {base.recall_25cm:.1f}"}
+        for r in ROBUSTNESS_ROWS[1:]:
+            if r.key in g.index:
+                d50, d25 = (g.loc[r.key, c] - base[c] for c in ("recall_50cm", "recall_25cm"))
+                row[r.key] = f"{d50:+.1f} / {d25:+.1f}"
+        rows.append(row)
+    cols = ["Method", "Track", "query", *(r.key for r in ROBUSTNESS_ROWS[1:])]
+    return pd.DataFrame(rows, columns=cols).dropna(axis=1, how="all").fillna("-")
+
+
+ROBUSTNESS_TITLE = "Robustness: R@50cm / R@25cm on the query split, and their change on each variant [points]"
+
+
 def to_markdown(b: pd.DataFrame, scenes: pd.DataFrame) -> str:
     head = [BOARD_COLUMNS[c] for c in b.columns]
     lines = [
@@ -134,6 +161,16 @@ def to_markdown(b: pd.DataFrame, scenes: pd.DataFrame) -> str:
     for title, t in _by_track(b):
         lines += ["", f"## {title}", "", "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
         lines += ["| " + " | ".join(_fmt(c, r[c]) for c in b.columns) + " |" for _, r in t.iterrows()]
+    drops = robustness_drops(b)
+    if not drops.empty:
+        lines += [
+            "",
+            f"## {ROBUSTNESS_TITLE}",
+            "",
+            "| " + " | ".join(drops.columns) + " |",
+            "|" + "---|" * drops.shape[1],
+        ]
+        lines += ["| " + " | ".join(map(str, r)) + " |" for r in drops.itertuples(index=False)]
     scenes = scenes.assign(_rank=_track_rank(scenes["track"])).sort_values(["_rank", "split"], kind="stable")
     for (track, split), t in scenes.groupby(["track", "split"], sort=False):
         rows = [(m, {"method": m}) for m in b[(b.track == track) & (b.split == split)]["method"]]
@@ -170,20 +207,33 @@ def to_html(b: pd.DataFrame, plots: list[str]) -> str:
     head = "".join(f"<th>{html.escape(BOARD_COLUMNS[c])}</th>" for c in b.columns)
     tables = "".join(
         f"<h2>{html.escape(title)}</h2>\n"
-        f'<table class="sortable"><thead><tr>{head}</tr></thead><tbody>'
+        f'<div class="scroll"><table class="sortable"><thead><tr>{head}</tr></thead><tbody>'
         + "".join(
             "<tr>" + "".join(f"<td>{html.escape(_fmt(c, r[c]))}</td>" for c in b.columns) + "</tr>"
             for _, r in t.iterrows()
         )
-        + "</tbody></table>\n"
+        + "</tbody></table></div>\n"
         for title, t in _by_track(b)
     )
+    drops = robustness_drops(b)
+    if not drops.empty:
+        tables += (
+            f'<h2>{html.escape(ROBUSTNESS_TITLE)}</h2>\n<div class="scroll"><table class="sortable"><thead><tr>'
+            + "".join(f"<th>{html.escape(c)}</th>" for c in drops.columns)
+            + "</tr></thead><tbody>"
+            + "".join(
+                "<tr>" + "".join(f"<td>{html.escape(str(v))}</td>" for v in r) + "</tr>"
+                for r in drops.itertuples(index=False)
+            )
+            + "</tbody></table></div>\n"
+        )
     imgs = "".join(f'<figure><img src="{html.escape(p)}" alt="{html.escape(p)}"></figure>' for p in plots)
     return f"""<!doctype html>
 <html lang="en"><head><meta charset="utf-8"><title>openreloc-bench leaderboard</title>
 <style>
 body {{ font-family: system-ui, sans-serif; margin: 2em; color: #222; }}
 table {{ border-collapse: collapse; font-size: 14px; }}
+.scroll {{ overflow-x: auto; }}
 th, td {{ border: 1px solid #ccc; padding: 4px 8px; text-align: right; }}
 th {{ background: #f0f0f0; cursor: pointer; user-select: none; }}
 th[data-dir=asc]::after {{ content: " ▲"; }} th[data-dir=desc]::after {{ content: " ▼"; }}
@@ -240,6 +290,69 @@ def plot_scene_recall(scenes: pd.DataFrame, path: Path) -> None:
     plt.close(fig)
 
 
+TRACK_MARKERS = {"predicted": "o", "oracle-mask": "s", MASK_FREE: "^"}
+
+
+def plot_recall_vs_map_size(suite: pd.DataFrame, path: Path) -> None:
+    """The paper's trade-off: recall on the query split against map size per scene, one point per
+    (method, track); filled @25cm, hollow @50cm, joined by a line."""
+    s = suite[(suite["split"] == "query") & (suite["map_mb"] > 0)]
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    cmap = plt.get_cmap("tab10")
+    for k, ((method, track), g) in enumerate(s.groupby(["method", "track"])):
+        r = g.iloc[0]
+        color, marker = cmap(k % 10), TRACK_MARKERS.get(track, "D")
+        ax.plot([r.map_mb] * 2, [r.recall_25cm, r.recall_50cm], color=color, lw=1, alpha=0.6)
+        ax.scatter(r.map_mb, r.recall_50cm, marker=marker, facecolors="none", edgecolors=color)
+        ax.scatter(r.map_mb, r.recall_25cm, marker=marker, color=color, label=f"{method} ({track})")
+    ax.set_xscale("log")
+    ax.xaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(lambda v, _: f"{v:g}"))
+    ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
+    ax.set(xlabel="map size per scene [MB]", ylabel="recall [%]  (filled @25cm, hollow @50cm)", ylim=(0, 100))
+    ax.set_title("Recall vs map size (query split)")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=7, loc="center left", bbox_to_anchor=(1.0, 0.5))
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+LIGHT_SPLITS = ("query", "query_light1", "query_light2", "query_light3", "query_light4")
+"""The lighting levels in order: the original lighting, then the four decayed variants."""
+
+
+def plot_recall_vs_lighting(suite: pd.DataFrame, path: Path) -> bool:
+    """R@50cm (solid) and R@25cm (dashed) per lighting level, one colour per (method, track) run on the
+    query split and at least one decayed level; False (nothing drawn) when there is none."""
+    s = suite[suite["split"].isin(LIGHT_SPLITS)]
+    runs = [(key, g) for key, g in s.groupby(["method", "track"]) if len(g) > 1 and "query" in set(g["split"])]
+    if not runs:
+        return False
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    cmap = plt.get_cmap("tab10")
+    for k, ((method, track), g) in enumerate(runs):
+        g = g.set_index("split").reindex(LIGHT_SPLITS)
+        x = np.arange(len(LIGHT_SPLITS))
+        ax.plot(
+            x,
+            g["recall_50cm"],
+            "-",
+            marker=TRACK_MARKERS.get(track, "D"),
+            color=cmap(k % 10),
+            label=f"{method} ({track})",
+        )
+        ax.plot(x, g["recall_25cm"], "--", color=cmap(k % 10), alpha=0.7)
+    ax.set_xticks(np.arange(len(LIGHT_SPLITS)), ["original", "light 1", "light 2", "light 3", "light 4"])
+    ax.set(xlabel="lighting decay level", ylabel="recall [%]  (solid @50cm, dashed @25cm)", ylim=(0, 100))
+    ax.set_title("Recall vs lighting")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, loc="center left", bbox_to_anchor=(1.0, 0.5))
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return True
+
+
 def plot_topdown(q: pd.DataFrame, scene: str, path: Path) -> None:
     """Ground-truth vs estimated camera positions (x, y), a line from each truth to its estimate."""
     s = q[(q["scene"] == scene) & (q["split"] == "query")]
@@ -265,7 +378,7 @@ def plot_topdown(q: pd.DataFrame, scene: str, path: Path) -> None:
 
 def write_leaderboard(results: list[Path], out: Path) -> list[Path]:
     """Render everything into ``out`` (never inside or around a results directory); returns the files written."""
-    q = pool_seeds(mask_free_as_own_track(load_queries(results)))
+    q = mask_free_as_own_track(pool_seeds(load_queries(results)))  # pooled first: seeded runs carry the method's name
     for r in results:
         paths.check_output(out, [r], "--out")
     scenes, suite = build_tables(q, load_maps(results))
@@ -281,6 +394,10 @@ def write_leaderboard(results: list[Path], out: Path) -> list[Path]:
     plot_cumulative(q, "t_err_m", 1.0, "translation error [m]", plots[0])
     plot_cumulative(q, "r_err_deg", 20.0, "rotation error [°]", plots[1])
     plot_scene_recall(scenes, plots[2])
+    plots.append(plots_dir / "recall_vs_map_size.png")
+    plot_recall_vs_map_size(suite, plots[-1])
+    if plot_recall_vs_lighting(suite, plots_dir / "recall_vs_lighting.png"):
+        plots.append(plots_dir / "recall_vs_lighting.png")
     for scene in sorted(q.loc[q["split"] == "query", "scene"].unique()):
         plots.append(plots_dir / f"topdown_{scene}.png")
         plot_topdown(q, scene, plots[-1])

@@ -40,6 +40,7 @@ from openreloc_bench.data.scene import Scene
 from openreloc_bench.data.types import SceneSequence
 from openreloc_bench.errors import ConfigError, DataError
 from openreloc_bench.harness import cache
+from openreloc_bench.harness.ablations import ABLATED_METHOD, ABLATION_ROWS, ablation_label
 from openreloc_bench.harness.executors import exit_with, make_executor, mp_context
 from openreloc_bench.harness.score import QUERY_COLUMNS, Outcome, score_split
 from openreloc_bench.harness.tables import read_query_csv
@@ -511,6 +512,18 @@ def _create(run: MethodRun) -> Relocalizer:
         return create_method(run.method, **run.overrides)
     except TypeError as e:  # plugins that take **kwargs loosely fail this way on a bad key
         raise ConfigError(f"method '{run.label}': invalid config ({e})") from None
+
+
+def variant_runs(names: list[str], overrides: dict[str, dict[str, Any]], ablations: bool) -> list[MethodRun]:
+    """Each named method with its config overrides, plus the paper's ablation rows of
+    ``ABLATED_METHOD`` (and the full method they are compared with) if ``ablations``."""
+    runs = [MethodRun(n, n, overrides.get(n, {})) for n in names]
+    if ablations:
+        base = overrides.get(ABLATED_METHOD, {})
+        runs += [MethodRun(ablation_label(r), ABLATED_METHOD, {**base, **r.overrides}) for r in ABLATION_ROWS]
+        if ABLATED_METHOD not in names:
+            runs.append(MethodRun(ABLATED_METHOD, ABLATED_METHOD, base))
+    return runs
 
 
 def seeded_runs(runs: list[MethodRun], seeds: list[int]) -> list[tuple[MethodRun, Relocalizer]]:

@@ -1,0 +1,61 @@
+"""Regenerate the leaderboard in one command: generate the plan's suites, build every method's maps,
+run every method on every suite, track, split and seed (and the ablations), then write one board per
+suite, a screenshot of each, and OUT/campaign.md (the commit, wall time by stage, the longest steps,
+the summary table).
+
+Every row comes from the checked-out commit: a working tree with uncommitted changes is refused, and a
+WORK folder started at another commit too. Resumable: run the same command again and only the steps
+not yet finished run (inside a step, only its unfinished jobs). Steps run in priority order (the query
+split of every method first, then the robustness splits, the further seeds, the ablations), so an
+unfinished campaign already renders useful boards (--render-only).
+
+Example:
+  openreloc-bench campaign leaderboard/plan.yaml --data data --work results/campaign --out leaderboard
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from openreloc_bench.harness.executors import EXECUTORS
+
+NAME = "campaign"
+HELP = "regenerate every board: all methods, suites, tracks, splits, seeds at one commit"
+ORDER = 45
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("plan", type=Path, help="plan YAML (leaderboard/plan.yaml: the committed boards' plan)")
+    p.add_argument("--data", type=Path, required=True, help="dataset folder (missing suites are generated into it)")
+    p.add_argument("--work", type=Path, required=True, help="results of every step, and the campaign's record")
+    p.add_argument("--out", type=Path, default=Path("leaderboard"), help="boards folder (default: leaderboard/)")
+    p.add_argument("--executor", default="local", choices=EXECUTORS)
+    p.add_argument("--workers", type=int, default=2, help="parallel jobs per step (local executor)")
+    p.add_argument("--ray-address", help="existing Ray cluster (default: $RAY_ADDRESS, else a local instance)")
+    p.add_argument("--render-only", action="store_true", help="render the boards from the finished steps only")
+    p.add_argument("--no-screenshot", action="store_true", help="skip the boards' screenshots")
+    p.add_argument("--allow-dirty", action="store_true", help="run with uncommitted changes (a trial run)")
+    p.add_argument("--list", action="store_true", help="print the plan's steps and whether each is done")
+
+
+def run(args: argparse.Namespace) -> int:
+    from openreloc_bench.harness import cache, campaign
+
+    plan = campaign.load_plan(args.plan)
+    if args.list:
+        ledger = campaign.Ledger(args.work, cache.git_commit()) if (args.work / "campaign.json").is_file() else None
+        steps = campaign.plan_steps(plan)
+        for k, step in enumerate(steps, 1):
+            state = "done" if ledger and ledger.done(step) else "to run"
+            print(f"{k:3d}/{len(steps)} {state:6s} {step.key}: {', '.join(step.splits)}; seeds {list(step.seeds)}")
+        return 0
+    cfg = campaign.CampaignConfig(
+        plan=plan, data=args.data, work=args.work, out=args.out, executor=args.executor, workers=args.workers,
+        ray_address=args.ray_address, allow_dirty=args.allow_dirty, render_only=args.render_only,
+        screenshot=not args.no_screenshot,
+    )  # fmt: skip
+    failed = campaign.run_campaign(cfg)
+    if failed:
+        print(f"{failed} step(s) had errors (listed above); run the same command again to retry them")
+    return 1 if failed else 0

@@ -1,0 +1,323 @@
+"""A leaderboard campaign: every method on every benchmark suite, track, split and seed, at one commit.
+
+The campaign is a list of steps, each one ``eval`` call (one suite, track and method; its splits and
+seeds), ordered so that an interrupted or partial campaign already holds the most useful rows: first
+the query split of every method on both tracks, then the robustness splits, then the further seeds,
+then the ablations. Each finished step is recorded in ``WORK/campaign.json`` with its wall time; a
+second run at the same commit skips recorded steps (and, inside a step, ``eval``'s finished jobs), and
+a run at another commit is refused, so every row of the boards it renders comes from one commit.
+"""
+
+from __future__ import annotations
+
+import shutil
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from openreloc_bench import config
+from openreloc_bench.data import io, paths
+from openreloc_bench.data.scene import QUERY_SPLITS
+from openreloc_bench.errors import ConfigError
+from openreloc_bench.harness import cache, runner, tables
+from openreloc_bench.harness.ablations import ABLATED_METHOD
+from openreloc_bench.harness.suites import ensure_suite_scenes
+from openreloc_bench.methods import MASK_FREE, uses_masks
+
+STAGES = ("headline", "robustness", "seeds", "ablations")
+"""The campaign's stages, in the order they run (each a priority: a partial campaign has the first)."""
+
+
+@dataclass
+class CampaignPlan:
+    """What a campaign runs (``leaderboard/plan.yaml`` is the one behind the committed boards)."""
+
+    suites: list[str] = field(default_factory=lambda: ["multi-room", "multi-floor", "single-room"])
+    """Benchmark suites by name (``<suite_dir>/<name>.yaml``). Validation suites are refused: they are
+    for choosing settings and are never reported."""
+    suite_dir: str = "scenes"
+    """Folder holding the suite YAMLs (relative to the working directory)."""
+    methods: list[str] = field(
+        default_factory=lambda: [
+            "openreloc", "openreloc-paper", "goreloc", "sift-pnp", "orb-reloc", "retrieval", "posenet", "nearest-frame"
+        ]
+    )  # fmt: skip
+    """Registered method names, each run on every suite."""
+    tracks: list[str] = field(default_factory=lambda: ["predicted", "oracle-mask"])
+    """Tracks, headline first. Methods that read no masks run on the first only (their rows stand in both
+    tables)."""
+    splits: list[str] = field(default_factory=lambda: list(QUERY_SPLITS))
+    """Query splits; the first is the headline split, the others are the robustness stage."""
+    seeds: list[int] = field(default_factory=lambda: [0, 1, 2])
+    """Seeds of the seeded methods; the first runs in the headline and robustness stages, the others in
+    the seeds stage (deterministic methods run once)."""
+    ablation_suites: list[str] = field(default_factory=lambda: ["multi-room"])
+    """Suites on which the paper's ablation rows of OpenReLoc run (headline split, first seed)."""
+    ablation_track: str = "oracle-mask"
+    """Track of the ablation rows (the upper bound isolates each part from the segmenter's errors)."""
+    serial_methods: list[str] = field(default_factory=lambda: ["posenet"])
+    """Methods whose jobs run one at a time under the local executor: each trains with every core, and
+    beside another job it is several times slower."""
+    plugins: list[str] = field(default_factory=list)
+    """Modules to import first (methods registered with ``openreloc_bench.methods.register``)."""
+
+
+@dataclass(frozen=True)
+class Step:
+    """One ``eval`` call of the campaign."""
+
+    stage: str
+    suite: str
+    track: str
+    method: str
+    splits: tuple[str, ...]
+    seeds: tuple[int, ...]
+    ablations: bool = False
+
+    @property
+    def key(self) -> str:
+        return f"{self.stage}/{self.suite}/{self.track}/{self.method}"
+
+    def record(self) -> dict[str, Any]:
+        return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
+
+
+def load_plan(path: Path) -> CampaignPlan:
+    """A plan YAML, checked: known suites, tracks, splits, methods and plugins, distinct seeds."""
+    plan = config.from_dict(CampaignPlan, config.load_mapping(path), "plan")
+    check_plan(plan)
+    return plan
+
+
+def check_plan(plan: CampaignPlan) -> None:
+    """One-line errors for a plan that cannot run, before any work."""
+    from generators.spec import load_suite
+
+    runner.import_plugins(plan.plugins)
+    for what, names in (("suites", plan.suites), ("methods", plan.methods), ("tracks", plan.tracks)):
+        if not names or len(set(names)) != len(names):
+            raise ConfigError(f"plan: '{what}' must name at least one entry, each once")
+    if not plan.splits or len(set(plan.splits)) != len(plan.splits) or not plan.seeds:
+        raise ConfigError("plan: 'splits' and 'seeds' must name at least one entry, splits each once")
+    for track in {*plan.tracks, plan.ablation_track}:
+        if track not in runner.TRACKS:
+            raise ConfigError(f"plan: unknown track '{track}' (known: {', '.join(runner.TRACKS)})")
+    wrong = [s for s in plan.splits if s not in QUERY_SPLITS]
+    if wrong:
+        raise ConfigError(f"plan: unknown split '{wrong[0]}' (known: {', '.join(QUERY_SPLITS)})")
+    runner.seeded_runs([runner.MethodRun(m, m) for m in plan.methods], plan.seeds)  # unknown methods, seeds
+    for name in {*plan.suites, *plan.ablation_suites}:
+        if name not in plan.suites:
+            raise ConfigError(f"plan: ablation suite '{name}' is not one of the plan's suites")
+        path = suite_path(plan, name)
+        if not path.is_file():
+            raise ConfigError(f"plan: no suite file {path}")
+        if load_suite(path).purpose != "benchmark":
+            raise ConfigError(f"plan: {path} is a validation suite: choose settings on it, never report it")
+
+
+def suite_path(plan: CampaignPlan, name: str) -> Path:
+    return Path(plan.suite_dir) / f"{paths.plain_name(name, 'suite')}.yaml"
+
+
+def is_seeded(method: str) -> bool:
+    return len(runner.seeded_runs([runner.MethodRun(method, method)], [0, 1])) > 1
+
+
+def plan_steps(plan: CampaignPlan) -> list[Step]:
+    """The campaign's steps in the order they run."""
+    first, rest = plan.splits[:1], plan.splits[1:]
+    steps = []
+
+    def per_method(stage: str, splits: list[str], seeds: list[int], methods: list[str]) -> None:
+        for suite in plan.suites:
+            for track in plan.tracks:
+                for m in methods:
+                    if uses_masks(m) or track == plan.tracks[0]:
+                        steps.append(Step(stage, suite, track, m, tuple(splits), tuple(seeds)))
+
+    per_method("headline", first, plan.seeds[:1], plan.methods)
+    if rest:
+        per_method("robustness", rest, plan.seeds[:1], plan.methods)
+    if len(plan.seeds) > 1:
+        per_method("seeds", plan.splits, plan.seeds, [m for m in plan.methods if is_seeded(m)])
+    steps += [
+        Step("ablations", s, plan.ablation_track, ABLATED_METHOD, tuple(first), tuple(plan.seeds[:1]), True)
+        for s in plan.ablation_suites
+    ]
+    return steps
+
+
+@dataclass
+class CampaignConfig:
+    """One ``openreloc-bench campaign`` invocation."""
+
+    plan: CampaignPlan
+    """What to run."""
+    data: Path
+    """Dataset folder (suites generated into it where missing)."""
+    work: Path
+    """Results of every step (one results folder per suite) and ``campaign.json``."""
+    out: Path
+    """Where the boards go (one folder per suite, plus ``campaign.md``)."""
+    executor: str = "local"
+    """``local`` or ``ray``."""
+    workers: int = 2
+    """Parallel jobs of each step (local executor)."""
+    ray_address: str | None = None
+    """Existing Ray cluster (default: ``RAY_ADDRESS`` or a local instance)."""
+    allow_dirty: bool = False
+    """Run from a working tree with uncommitted changes (a trial: its rows name no checkout-able commit)."""
+    render_only: bool = False
+    """Render the boards from the finished steps; run nothing."""
+    screenshot: bool = True
+    """Save a screenshot of each board's HTML page (when a headless Chromium is installed)."""
+
+
+class Ledger:
+    """``WORK/campaign.json``: the campaign's commit, and each finished step with its wall time."""
+
+    def __init__(self, work: Path, commit: str):
+        self.path = work / "campaign.json"
+        self.data: dict[str, Any] = {"commit": commit, "steps": {}}
+        if self.path.is_file():
+            self.data = io.read_json(self.path)
+            if self.data.get("commit") != commit:
+                raise ConfigError(
+                    f"{work} holds a campaign run at commit {self.data.get('commit')}, this checkout is at {commit}: "
+                    "check that commit out to go on with it, or give another --work"
+                )
+
+    def done(self, step: Step) -> bool:
+        rec = self.data["steps"].get(step.key)
+        return bool(rec) and rec["step"] == step.record() and not rec["errors"]
+
+    def add(self, key: str, rec: dict[str, Any]) -> None:
+        self.data["steps"][key] = rec
+        io.write_json(self.path, self.data)
+
+
+def run_campaign(cfg: CampaignConfig, say: Callable[[str], None] = print) -> int:
+    """Run the plan's missing steps, then render the boards; returns the number of steps with errors."""
+    check_plan(cfg.plan)
+    commit = cache.git_commit()
+    if (commit.endswith("-dirty") or commit == "unknown") and not cfg.allow_dirty:
+        raise ConfigError(
+            f"the checkout is at {commit}: a board names the commit its rows come from; "
+            "commit first (or --allow-dirty for a trial run)"
+        )
+    if cfg.workers < 1:
+        raise ConfigError("--workers must be >= 1")
+    cfg.work.mkdir(parents=True, exist_ok=True)
+    with paths.directory_lock(cfg.work, "openreloc-bench campaign"):
+        ledger = Ledger(cfg.work, commit)
+        failed = 0 if cfg.render_only else _run_steps(cfg, ledger, say)
+        render(cfg, ledger, say)
+    return failed
+
+
+def _run_steps(cfg: CampaignConfig, ledger: Ledger, say: Callable[[str], None]) -> int:
+    steps = plan_steps(cfg.plan)
+    scenes: dict[str, list[str]] = {}
+    failed = 0
+    for k, step in enumerate(steps, 1):
+        if ledger.done(step):
+            continue
+        if step.suite not in scenes:
+            t0 = time.perf_counter()
+            scenes[step.suite] = ensure_suite_scenes(suite_path(cfg.plan, step.suite), cfg.data)
+            if f"generate/{step.suite}" not in ledger.data["steps"]:
+                ledger.add(f"generate/{step.suite}", {"wall_s": time.perf_counter() - t0, "errors": []})
+        say(f"[{k}/{len(steps)}] {step.key}: {', '.join(step.splits)}; seeds {', '.join(map(str, step.seeds))}")
+        serial = cfg.executor == "local" and step.method in cfg.plan.serial_methods
+        ecfg = runner.EvalConfig(
+            data=cfg.data, out=cfg.work / step.suite, scenes=scenes[step.suite],
+            runs=runner.variant_runs([step.method], {}, step.ablations), splits=list(step.splits),
+            track=step.track, executor=cfg.executor, workers=1 if serial else cfg.workers,
+            ray_address=cfg.ray_address, resume=True, plugins=cfg.plan.plugins, seeds=list(step.seeds),
+        )  # fmt: skip
+        report = runner.evaluate(ecfg)
+        for err in report.errors:
+            say(f"error: {err}")
+        failed += bool(report.errors)
+        ledger.add(step.key, {"step": step.record(), "wall_s": report.wall_s, "errors": report.errors,
+                              "queries": report.queries, "maps_built": report.maps_built})  # fmt: skip
+    return failed
+
+
+def timings(ledger: Ledger) -> pd.DataFrame:
+    """Wall time of every recorded step, longest first."""
+    rows = [
+        {"step": key, "stage": key.split("/")[0], "wall_s": rec["wall_s"], "errors": len(rec["errors"])}
+        for key, rec in ledger.data["steps"].items()
+    ]
+    return pd.DataFrame(rows, columns=["step", "stage", "wall_s", "errors"]).sort_values("wall_s", ascending=False)
+
+
+def render(cfg: CampaignConfig, ledger: Ledger, say: Callable[[str], None]) -> None:
+    """Every suite's board from its results folder, the campaign page and, where Chromium is installed,
+    a screenshot of each board."""
+    from openreloc_bench.harness import browser
+    from openreloc_bench.harness.leaderboard import write_leaderboard
+
+    summaries = []
+    for suite in cfg.plan.suites:
+        results = cfg.work / suite
+        queries = runner.load_run_queries(results) if results.is_dir() else pd.DataFrame()
+        if queries.empty:
+            continue
+        tables.write_tables(results / "tables", queries, runner.load_map_records(results))
+        board = cfg.out / suite
+        write_leaderboard([results], board)
+        for abl in sorted((results / "tables").glob("ablations_*.md")):
+            shutil.copyfile(abl, board / abl.name)
+        summaries.append(pd.read_csv(board / "leaderboard.csv").assign(suite=suite))
+        if cfg.screenshot and browser.available():
+            browser.screenshot(board / "index.html", board / "screenshot.png")
+        elif cfg.screenshot:
+            say(f"no screenshot of {board / 'index.html'}: {browser.MISSING}")
+    pending = [s.key for s in plan_steps(cfg.plan) if not ledger.done(s)]
+    text = campaign_page(ledger, pd.concat(summaries) if summaries else pd.DataFrame(), pending, cfg.plan)
+    io.atomic_write_text(cfg.out / "campaign.md", text)
+    say(text.split("\n## Summary")[0].rstrip())
+    say(f"boards in {cfg.out}")
+
+
+def campaign_page(ledger: Ledger, suite_rows: pd.DataFrame, pending: list[str], plan: CampaignPlan) -> str:
+    """``campaign.md``: the commit, the wall time by stage and the longest steps, what is still to run,
+    and the headline-split recall of every method on every suite and track."""
+    t = timings(ledger)
+    total = t["wall_s"].sum()
+    lines = [
+        "# Leaderboard campaign",
+        "",
+        f"Every row of the boards below comes from commit `{ledger.data['commit']}`.",
+        f"Wall time of the recorded steps: {total / 3600:.2f} h ({len(t)} steps); "
+        f"{len(pending)} step(s) of the plan still to run.",
+        "",
+        "| Stage | Wall [h] | Share [%] |",
+        "|---|---|---|",
+    ]
+    by_stage = t.groupby("stage")["wall_s"].sum()
+    for stage in ["generate", *STAGES]:
+        if stage in by_stage:
+            lines.append(f"| {stage} | {by_stage[stage] / 3600:.2f} | {100 * by_stage[stage] / max(total, 1e-9):.0f} |")
+    lines += ["", "Longest steps:", ""] + [f"- `{r.step}`: {r.wall_s / 60:.1f} min" for r in t.head(8).itertuples()]
+    if pending:
+        lines += ["", "Still to run:", ""] + [f"- `{p}`" for p in pending]
+    if not suite_rows.empty:
+        head = suite_rows[suite_rows["split"] == plan.splits[0]]
+        lines += ["", f"## Summary: R@50cm / R@25cm [%] on the {plan.splits[0]} split", ""]
+        suites = [s for s in plan.suites if s in set(head["suite"])]
+        lines += ["| Method | Track | " + " | ".join(suites) + " |", "|" + "---|" * (len(suites) + 2)]
+        order = {t: k for k, t in enumerate([*plan.tracks, MASK_FREE])}
+        head = head[head["method"].isin(plan.methods)]
+        head = head.assign(_rank=head["track"].map(lambda x: order.get(x, len(order))))
+        for (method, track), g in head.sort_values(["_rank", "method"]).groupby(["method", "track"], sort=False):
+            cells = {r.suite: f"{r.recall_50cm:.1f} / {r.recall_25cm:.1f}" for r in g.itertuples()}
+            lines.append(f"| {method} | {track} | " + " | ".join(cells.get(s, "-") for s in suites) + " |")
+    return "\n".join(lines) + "\n"

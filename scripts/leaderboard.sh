@@ -1,0 +1,12 @@
+#!/usr/bin/env bash
+# Regenerate leaderboard/ from a clean checkout in one command: set up, then run the committed plan
+# (leaderboard/plan.yaml). Resumable: run it again after an interruption. Extra arguments go to
+# `openreloc-bench campaign` (e.g. --executor ray --ray-address ADDR, --workers N, --render-only).
+# DATA and WORK default to data/ and results/campaign/ (both ignored by git).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bash scripts/setup.sh
+start=$(date +%s)
+.venv/bin/openreloc-bench campaign leaderboard/plan.yaml --data "${DATA:-data}" --work "${WORK:-results/campaign}" \
+  --out leaderboard "$@"
+echo "[leaderboard] total wall time: $(( ($(date +%s) - start) / 60 )) min"

@@ -1,0 +1,161 @@
+"""The leaderboard campaign: steps in priority order, one commit, resumable, boards rendered."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from openreloc_bench.errors import ConfigError
+from openreloc_bench.harness import cache, campaign, runner
+
+SUITE = "name: tiny\nscenes:\n  - {name: t1, seed: 3, width: 32, height: 24, n_query: 2, max_mapping_frames: 2, n_displaced: 0}\n"
+
+
+@pytest.fixture
+def plan(tmp_path: Path) -> campaign.CampaignPlan:
+    (tmp_path / "suites").mkdir()
+    (tmp_path / "suites" / "tiny.yaml").write_text(SUITE)
+    return campaign.CampaignPlan(
+        suites=["tiny"], suite_dir=str(tmp_path / "suites"), methods=["test-oracle", "nearest-frame"],
+        tracks=["predicted", "oracle-mask"], splits=["query", "query_light1"], seeds=[0, 1], ablation_suites=[],
+        plugins=["harness_test_methods"],
+    )  # fmt: skip
+
+
+def config(plan: campaign.CampaignPlan, tmp_path: Path, **kw) -> campaign.CampaignConfig:
+    return campaign.CampaignConfig(
+        plan=plan, data=tmp_path / "data", work=tmp_path / "work", out=tmp_path / "board", workers=1, screenshot=False,
+        **kw,
+    )  # fmt: skip
+
+
+@pytest.fixture
+def commit(monkeypatch: pytest.MonkeyPatch) -> list[str]:
+    """The commit the campaign sees (mutable: a test moves the checkout by changing it)."""
+    head = ["a" * 40]
+    monkeypatch.setattr(cache, "git_commit", lambda: head[0])
+    return head
+
+
+def test_steps_run_headline_first_and_mask_free_methods_once(plan: campaign.CampaignPlan) -> None:
+    steps = campaign.plan_steps(plan)
+    assert [s.key for s in steps] == [
+        "headline/tiny/predicted/test-oracle", "headline/tiny/predicted/nearest-frame",
+        "headline/tiny/oracle-mask/test-oracle",
+        "robustness/tiny/predicted/test-oracle", "robustness/tiny/predicted/nearest-frame",
+        "robustness/tiny/oracle-mask/test-oracle",
+        "seeds/tiny/predicted/test-oracle", "seeds/tiny/oracle-mask/test-oracle",  # nearest-frame has no seed
+    ]  # fmt: skip
+    assert steps[0].splits == ("query",) and steps[0].seeds == (0,)
+    assert steps[3].splits == ("query_light1",) and steps[-1].seeds == (0, 1)
+
+
+def test_ablations_run_last_on_their_suites(plan: campaign.CampaignPlan) -> None:
+    plan.ablation_suites = ["tiny"]
+    last = campaign.plan_steps(plan)[-1]
+    assert (last.key, last.ablations, last.splits) == ("ablations/tiny/oracle-mask/openreloc", True, ("query",))
+    labels = [r.label for r in runner.variant_runs([last.method], {}, True)]
+    assert labels[0] == "openreloc" and len(labels) == 11 and all(x.startswith("openreloc+") for x in labels[1:])
+
+
+def test_campaign_renders_one_board_per_suite_and_resumes(
+    plan: campaign.CampaignPlan, tmp_path: Path, commit: list[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    cfg = config(plan, tmp_path)
+    said: list[str] = []
+    assert campaign.run_campaign(cfg, said.append) == 0
+    board = pd.read_csv(tmp_path / "board" / "tiny" / "leaderboard.csv")
+    rows = {(r.method, r.track, r.split): r for r in board.itertuples()}
+    assert set(rows) == {
+        (m, t, s) for m, t in [("test-oracle", "predicted"), ("test-oracle", "oracle-mask"), ("nearest-frame", "mask-free")]
+        for s in ("query", "query_light1")
+    }  # fmt: skip
+    assert rows["test-oracle", "predicted", "query"].n_seeds == 2 and set(board["git_commit"]) == {commit[0]}
+    assert rows["test-oracle", "predicted", "query"].n_queries == 4  # 2 queries x 2 seeds
+    page = (tmp_path / "board" / "campaign.md").read_text()
+    assert f"commit `{commit[0]}`" in page and "0 step(s) of the plan still to run" in page
+    assert "| test-oracle | predicted |" in page and "| nearest-frame | mask-free |" in page
+    assert "Robustness" in (tmp_path / "board" / "tiny" / "leaderboard.md").read_text()
+
+    def no_eval(cfg: runner.EvalConfig) -> runner.EvalReport:
+        raise AssertionError("a finished step ran again")
+
+    monkeypatch.setattr(runner, "evaluate", no_eval)
+    (tmp_path / "board" / "tiny" / "leaderboard.md").unlink()
+    assert campaign.run_campaign(cfg, said.append) == 0
+    assert (tmp_path / "board" / "tiny" / "leaderboard.md").is_file()  # rendered again, nothing run
+
+
+def test_a_step_with_errors_runs_again(
+    plan: campaign.CampaignPlan, tmp_path: Path, commit: list[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    plan.splits, plan.seeds, plan.methods = ["query"], [0], ["nearest-frame"]
+    calls = []
+
+    def failing(cfg: runner.EvalConfig) -> runner.EvalReport:
+        calls.append(cfg.track)
+        return runner.EvalReport(errors=["t1/nearest-frame: boom"])
+
+    monkeypatch.setattr(runner, "evaluate", failing)
+    assert campaign.run_campaign(config(plan, tmp_path), lambda s: None) == 1
+    assert campaign.run_campaign(config(plan, tmp_path), lambda s: None) == 1
+    assert calls == ["predicted", "predicted"]
+
+
+def test_another_commit_or_a_dirty_tree_is_refused(
+    plan: campaign.CampaignPlan, tmp_path: Path, commit: list[str]
+) -> None:
+    plan.splits, plan.seeds, plan.methods, plan.tracks = ["query"], [0], ["nearest-frame"], ["predicted"]
+    campaign.run_campaign(config(plan, tmp_path), lambda s: None)
+    commit[0] = "b" * 40
+    with pytest.raises(ConfigError, match="at commit a+, this checkout is at b+"):
+        campaign.run_campaign(config(plan, tmp_path), lambda s: None)
+    commit[0] = "a" * 40 + "-dirty"
+    with pytest.raises(ConfigError, match="commit first"):
+        campaign.run_campaign(config(plan, tmp_path / "other"), lambda s: None)
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ({"methods": ["no-such-method"]}, "no-such-method"),
+        ({"splits": ["query", "mapping"]}, "unknown split 'mapping'"),
+        ({"tracks": ["predicted", "predicted"]}, "each once"),
+        ({"ablation_suites": ["elsewhere"]}, "not one of the plan's suites"),
+        ({"suites": ["missing"]}, "no suite file"),
+    ],
+)
+def test_bad_plans_fail_in_one_line(plan: campaign.CampaignPlan, change: dict, message: str) -> None:
+    for k, v in change.items():
+        setattr(plan, k, v)
+    with pytest.raises(ConfigError, match=message):
+        campaign.check_plan(plan)
+
+
+def test_validation_suites_are_never_reported(plan: campaign.CampaignPlan) -> None:
+    path = Path(plan.suite_dir) / "tiny.yaml"
+    path.write_text("purpose: validation\n" + SUITE.replace("seed: 3", "seed: 10000003"))
+    with pytest.raises(ConfigError, match="validation suite"):
+        campaign.check_plan(plan)
+
+
+def test_the_committed_plan_loads(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.chdir(Path(__file__).parents[2])  # its suites are named relative to the repository
+    plan = campaign.load_plan(Path("leaderboard") / "plan.yaml")
+    assert plan.tracks[0] == "predicted" and plan.seeds == [0, 1, 2]
+
+
+def test_a_seeded_mask_free_method_stands_once_with_every_seed(
+    plan: campaign.CampaignPlan, tmp_path: Path, commit: list[str]
+) -> None:
+    plan.methods, plan.splits = ["test-oracle-mask-free"], ["query"]
+    assert [s.key for s in campaign.plan_steps(plan)] == [
+        "headline/tiny/predicted/test-oracle-mask-free", "seeds/tiny/predicted/test-oracle-mask-free"
+    ]  # fmt: skip
+    assert campaign.run_campaign(config(plan, tmp_path), lambda s: None) == 0
+    board = pd.read_csv(tmp_path / "board" / "tiny" / "leaderboard.csv")
+    assert board[["method", "track", "n_seeds", "n_queries"]].values.tolist() == [
+        ["test-oracle-mask-free", "mask-free", 2, 4]
+    ]

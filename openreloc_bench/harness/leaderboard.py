@@ -151,12 +151,22 @@ def robustness_drops(b: pd.DataFrame) -> pd.DataFrame:
 ROBUSTNESS_TITLE = "Robustness: R@50cm / R@25cm on the query split, and their change on each variant [points]"
 
 
+def provenance(b: pd.DataFrame) -> str:
+    """The line naming the commit every row comes from (or, for a board merged from several runs, each)."""
+    commits = sorted(set(b["git_commit"]))
+    if len(commits) == 1:
+        return f"Every row comes from commit {commits[0]}."
+    return f"Rows from {len(commits)} commits (see the Commit column): {', '.join(commits)}."
+
+
 def to_markdown(b: pd.DataFrame, scenes: pd.DataFrame) -> str:
     head = [BOARD_COLUMNS[c] for c in b.columns]
     lines = [
         "# openreloc-bench leaderboard",
         "",
         "Recall = share of all queries (failures count); MTE/MRE = mean error of the queries within the threshold.",
+        "",
+        provenance(b),
     ]
     for title, t in _by_track(b):
         lines += ["", f"## {title}", "", "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
@@ -243,7 +253,7 @@ img {{ max-width: 48%; float: left; margin: 1%; }}
 </style></head><body>
 <h1>openreloc-bench leaderboard</h1>
 <p>Recall = share of all queries (failed queries count). MTE/MRE = mean error of the queries within the
-threshold. Click a column header to sort.</p>
+threshold. Click a column header to sort. {html.escape(provenance(b))}</p>
 {tables}{imgs}
 <script>{_SORT_JS}</script>
 </body></html>

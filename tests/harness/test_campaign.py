@@ -77,7 +77,8 @@ def test_campaign_renders_one_board_per_suite_and_resumes(
     page = (tmp_path / "board" / "campaign.md").read_text()
     assert f"commit `{commit[0]}`" in page and "0 step(s) of the plan still to run" in page
     assert "| test-oracle | predicted |" in page and "| nearest-frame | mask-free |" in page
-    assert "Robustness" in (tmp_path / "board" / "tiny" / "leaderboard.md").read_text()
+    md = (tmp_path / "board" / "tiny" / "leaderboard.md").read_text()
+    assert "Robustness" in md and f"Every row comes from commit {commit[0][:12]}." in md
 
     def no_eval(cfg: runner.EvalConfig) -> runner.EvalReport:
         raise AssertionError("a finished step ran again")

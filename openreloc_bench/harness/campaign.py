@@ -22,7 +22,7 @@ import pandas as pd
 from openreloc_bench import config
 from openreloc_bench.data import io, paths
 from openreloc_bench.data.scene import QUERY_SPLITS
-from openreloc_bench.errors import ConfigError
+from openreloc_bench.errors import ConfigError, DataError
 from openreloc_bench.harness import cache, runner, tables
 from openreloc_bench.harness.ablations import ABLATED_METHOD
 from openreloc_bench.harness.suites import ensure_suite_scenes
@@ -186,6 +186,8 @@ class Ledger:
         self.data: dict[str, Any] = {"commit": commit, "steps": {}}
         if self.path.is_file():
             self.data = io.read_json(self.path)
+            if not isinstance(self.data, dict) or not isinstance(self.data.get("steps"), dict):
+                raise DataError(self.path, "not a campaign record (remove it to start the campaign afresh)")
             if self.data.get("commit") != commit:
                 raise ConfigError(
                     f"{work} holds a campaign run at commit {self.data.get('commit')}, this checkout is at {commit}: "

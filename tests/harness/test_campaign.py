@@ -7,7 +7,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from openreloc_bench.errors import ConfigError
+from openreloc_bench.errors import ConfigError, DataError
 from openreloc_bench.harness import cache, campaign, runner
 
 SUITE = "name: tiny\nscenes:\n  - {name: t1, seed: 3, width: 32, height: 24, n_query: 2, max_mapping_frames: 2, n_displaced: 0}\n"
@@ -160,3 +160,10 @@ def test_a_seeded_mask_free_method_stands_once_with_every_seed(
     assert board[["method", "track", "n_seeds", "n_queries"]].values.tolist() == [
         ["test-oracle-mask-free", "mask-free", 2, 4]
     ]
+
+
+def test_a_damaged_record_is_one_line(plan: campaign.CampaignPlan, tmp_path: Path, commit: list[str]) -> None:
+    (tmp_path / "work").mkdir()
+    (tmp_path / "work" / "campaign.json").write_text('["not", "a", "record"]')
+    with pytest.raises(DataError, match="not a campaign record"):
+        campaign.run_campaign(config(plan, tmp_path), lambda s: None)

@@ -51,10 +51,11 @@ def page(html_file: Path, width: int = 1600, height: int = 1000) -> Iterator[Any
         driver.quit()
 
 
-def screenshot(html_file: Path, png: Path, width: int = 1600) -> None:
-    """A PNG of the whole page (as tall as its content) at ``width`` pixels."""
+def screenshot(html_file: Path, png: Path, width: int = 1600, height: int | None = 1400) -> None:
+    """A PNG of the top ``height`` pixels of the page at ``width`` pixels (None: the whole page)."""
     with page(html_file, width) as driver:
-        height = driver.execute_script("return document.documentElement.scrollHeight")
-        driver.set_window_size(width, min(int(height) + 40, 12000))
+        if height is None:
+            height = int(driver.execute_script("return document.documentElement.scrollHeight")) + 40
+        driver.set_window_size(width, min(height, 12000))
         png.parent.mkdir(parents=True, exist_ok=True)
         driver.save_screenshot(str(png))

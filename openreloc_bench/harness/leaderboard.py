@@ -153,7 +153,9 @@ ROBUSTNESS_TITLE = "Robustness: R@50cm / R@25cm on the query split, and their ch
 
 def provenance(b: pd.DataFrame) -> str:
     """The line naming the commit every row comes from (or, for a board merged from several runs, each)."""
-    commits = sorted(set(b["git_commit"]))
+    commits = sorted(set(b["git_commit"])) if "git_commit" in b else []
+    if not commits:
+        return "No commit recorded with these rows."
     if len(commits) == 1:
         return f"Every row comes from commit {commits[0]}."
     return f"Rows from {len(commits)} commits (see the Commit column): {', '.join(commits)}."
@@ -247,7 +249,7 @@ table {{ border-collapse: collapse; font-size: 14px; }}
 th, td {{ border: 1px solid #ccc; padding: 4px 8px; text-align: right; }}
 th {{ background: #f0f0f0; cursor: pointer; user-select: none; }}
 th[data-dir=asc]::after {{ content: " ▲"; }} th[data-dir=desc]::after {{ content: " ▼"; }}
-td:first-child, td:nth-child(2), td:nth-child(3) {{ text-align: left; }}
+td {{ white-space: nowrap; }} td:first-child, td:nth-child(2), td:nth-child(3) {{ text-align: left; }}
 tr:nth-child(even) {{ background: #fafafa; }}
 img {{ max-width: 48%; float: left; margin: 1%; }}
 </style></head><body>

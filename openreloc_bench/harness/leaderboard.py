@@ -171,18 +171,15 @@ def to_markdown(b: pd.DataFrame, scenes: pd.DataFrame) -> str:
         provenance(b),
     ]
     for title, t in _by_track(b):
-        lines += ["", f"## {title}", "", "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-        lines += ["| " + " | ".join(_fmt(c, r[c]) for c in b.columns) + " |" for _, r in t.iterrows()]
-    drops = robustness_drops(b)
-    if not drops.empty:
         lines += [
             "",
-            f"## {ROBUSTNESS_TITLE}",
+            f"## {title}",
             "",
-            "| " + " | ".join(drops.columns) + " |",
-            "|" + "---|" * drops.shape[1],
+            *_md_table(head, [[_fmt(c, r[c]) for c in b.columns] for _, r in t.iterrows()]),
         ]
-        lines += ["| " + " | ".join(map(str, r)) + " |" for r in drops.itertuples(index=False)]
+    drops = robustness_drops(b)
+    if not drops.empty:
+        lines += ["", f"## {ROBUSTNESS_TITLE}", "", *_md_table(list(drops.columns), drops.values.tolist())]
     scenes = scenes.assign(_rank=_track_rank(scenes["track"])).sort_values(["_rank", "split"], kind="stable")
     for (track, split), t in scenes.groupby(["track", "split"], sort=False):
         rows = [(m, {"method": m}) for m in b[(b.track == track) & (b.split == split)]["method"]]
@@ -195,10 +192,8 @@ def to_markdown(b: pd.DataFrame, scenes: pd.DataFrame) -> str:
     # map size per (method, track) and scene, from the per-scene rows (runs without maps have none)
     sizes = scenes.pivot_table(index=["method", "track"], columns="scene", values="map_mb", aggfunc="mean")
     if not sizes.empty:
-        lines += ["", "## Map size per scene [MB]", "", "| Method | Track | " + " | ".join(sizes.columns) + " |"]
-        lines.append("|" + "---|" * (len(sizes.columns) + 2))
-        for (method, track), row in sizes.iterrows():
-            lines.append(f"| {method} | {track} | " + " | ".join(_fmt("map_mb", v) for v in row) + " |")
+        rows = [[method, track, *(_fmt("map_mb", v) for v in row)] for (method, track), row in sizes.iterrows()]
+        lines += ["", "## Map size per scene [MB]", "", *_md_table(["Method", "Track", *sizes.columns], rows)]
     return "\n".join(lines) + "\n"
 
 
@@ -215,30 +210,31 @@ document.querySelectorAll('table.sortable th').forEach((th, i) => th.addEventLis
 """
 
 
-def to_html(b: pd.DataFrame, plots: list[str]) -> str:
-    head = "".join(f"<th>{html.escape(BOARD_COLUMNS[c])}</th>" for c in b.columns)
-    tables = "".join(
+def _html_table(title: str, head: list[str], rows: list[list[str]]) -> str:
+    """A titled, sortable, horizontally scrolling table."""
+    cells = "".join("<tr>" + "".join(f"<td>{html.escape(str(v))}</td>" for v in r) + "</tr>" for r in rows)
+    heads = "".join(f"<th>{html.escape(h)}</th>" for h in head)
+    return (
         f"<h2>{html.escape(title)}</h2>\n"
-        f'<div class="scroll"><table class="sortable"><thead><tr>{head}</tr></thead><tbody>'
-        + "".join(
-            "<tr>" + "".join(f"<td>{html.escape(_fmt(c, r[c]))}</td>" for c in b.columns) + "</tr>"
-            for _, r in t.iterrows()
-        )
-        + "</tbody></table></div>\n"
+        f'<div class="scroll"><table class="sortable"><thead><tr>{heads}</tr></thead><tbody>{cells}</tbody></table></div>\n'
+    )
+
+
+def _md_table(head: list[str], rows: list[list[str]]) -> list[str]:
+    return ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)] + [
+        "| " + " | ".join(map(str, r)) + " |" for r in rows
+    ]
+
+
+def to_html(b: pd.DataFrame, plots: list[str]) -> str:
+    head = [BOARD_COLUMNS[c] for c in b.columns]
+    tables = "".join(
+        _html_table(title, head, [[_fmt(c, r[c]) for c in b.columns] for _, r in t.iterrows()])
         for title, t in _by_track(b)
     )
     drops = robustness_drops(b)
     if not drops.empty:
-        tables += (
-            f'<h2>{html.escape(ROBUSTNESS_TITLE)}</h2>\n<div class="scroll"><table class="sortable"><thead><tr>'
-            + "".join(f"<th>{html.escape(c)}</th>" for c in drops.columns)
-            + "</tr></thead><tbody>"
-            + "".join(
-                "<tr>" + "".join(f"<td>{html.escape(str(v))}</td>" for v in r) + "</tr>"
-                for r in drops.itertuples(index=False)
-            )
-            + "</tbody></table></div>\n"
-        )
+        tables += _html_table(ROBUSTNESS_TITLE, list(drops.columns), drops.values.tolist())
     imgs = "".join(f'<figure><img src="{html.escape(p)}" alt="{html.escape(p)}"></figure>' for p in plots)
     return f"""<!doctype html>
 <html lang="en"><head><meta charset="utf-8"><title>openreloc-bench leaderboard</title>

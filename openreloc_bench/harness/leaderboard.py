@@ -131,7 +131,8 @@ def mask_free_as_own_track(q: pd.DataFrame) -> pd.DataFrame:
 
 def robustness_drops(b: pd.DataFrame) -> pd.DataFrame:
     """Per (method, track): recall on the plain query split and its change on every robustness split
-    (points of R@50cm / R@25cm; negative = lost), for the methods run on the query split and another."""
+    (points of R@50cm / R@25cm; negative = lost), for the methods run on the query split and another.
+    A change measured over another number of seeds than the query split's says so."""
     rows = []
     for (method, track), g in b.groupby(["method", "track"], sort=False):
         g = g.set_index("split")
@@ -142,7 +143,10 @@ def robustness_drops(b: pd.DataFrame) -> pd.DataFrame:
         for r in ROBUSTNESS_ROWS[1:]:
             if r.key in g.index:
                 d50, d25 = (g.loc[r.key, c] - base[c] for c in ("recall_50cm", "recall_25cm"))
-                row[r.key] = f"{d50:+.1f} / {d25:+.1f}"
+                other_seeds = "n_seeds" in g and g.loc[r.key, "n_seeds"] != base["n_seeds"]
+                row[r.key] = f"{d50:+.1f} / {d25:+.1f}" + (
+                    f" (over {g.loc[r.key, 'n_seeds']:.0f} seed(s))" if other_seeds else ""
+                )
         rows.append(row)
     cols = ["Method", "Track", "query", *(r.key for r in ROBUSTNESS_ROWS[1:])]
     return pd.DataFrame(rows, columns=cols).dropna(axis=1, how="all").fillna("-")

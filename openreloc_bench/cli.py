@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import logging
+import os
 import pkgutil
 import sys
 from types import ModuleType
@@ -70,6 +71,9 @@ def main(argv: list[str] | None = None) -> int:
     except OpenRelocError as e:
         print(f"openreloc-bench {args.command}: error: {e}", file=sys.stderr)
         return 2
+    except BrokenPipeError:  # the reader went away (`| head`): stop quietly, as other command-line tools do
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no second error when Python flushes
+        return 0
     except OSError as e:  # the system refused a file operation: read-only file system, permissions, disk full
         if args.verbose:
             raise

@@ -298,11 +298,15 @@ def run_map_job(job: MapJob) -> dict[str, Any]:
             except EOFError:
                 proc.join()
                 return {"error": f"the map worker died (exit code {proc.exitcode})"}
+        proc.kill()
         return {"error": f"building the map timed out after {job.timeout_s:g} s"}
     finally:
+        # a child that answered exits by itself; killing it on its way out would leave the semaphores
+        # it made (torch, tqdm) to the resource tracker, which then warns about leaks at shutdown
+        proc.join(timeout=30)
         if proc.is_alive():
             proc.kill()
-        proc.join()
+            proc.join()
         recv.close()
 
 

@@ -6,6 +6,8 @@ methods as the test process.
 
 from __future__ import annotations
 
+import multiprocessing
+import multiprocessing.util
 import os
 import time
 import zlib
@@ -21,6 +23,9 @@ from openreloc_bench.data import io
 from openreloc_bench.data.scene import SceneWriter
 from openreloc_bench.data.types import SceneSequence
 from openreloc_bench.methods import Failure, PoseEstimate, QueryFrame
+
+_KEPT: list[Any] = []
+"""Objects ``build_map`` keeps for the life of its process."""
 
 
 @dataclass
@@ -47,6 +52,9 @@ class OracleConfig:
     """Written into the map: the one map-time setting (the others act at query time)."""
     seed: int = 0
     """Adds ``seed`` x 10 cm to the translation noise, so runs over seeds differ by a known amount."""
+    slow_exit_s: float = 0.0
+    """``build_map`` leaves a semaphore and makes its process's exit take this long, as libraries that
+    keep multiprocessing locks (tqdm, torch) do."""
 
 
 class NoisyOracle:
@@ -64,6 +72,9 @@ class NoisyOracle:
     def build_map(self, mapping: SceneSequence, map_dir: Path) -> None:
         if self.config.hang_in == "build_map":
             time.sleep(3600)
+        if self.config.slow_exit_s:
+            _KEPT.append(multiprocessing.get_context("spawn").Lock())  # a semaphore the resource tracker knows
+            multiprocessing.util.Finalize(None, time.sleep, args=(self.config.slow_exit_s,), exitpriority=100)
         root = mapping.records[0].color_path.parents[2]
         io.write_json(Path(map_dir) / "oracle.json", {"scene_root": str(root), "map_tag": self.config.map_tag})
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -48,6 +50,7 @@ def test_eval_writes_poses_tum_tables_and_provenance(data_dir: Path, tmp_path: P
             "expect_track": "",
             "map_tag": "",
             "seed": 0,
+            "slow_exit_s": 0.0,
         },
     }
     assert marker["track"] == "oracle-mask" and marker["spec_hash"] == "hash-sA-1" and marker["git_commit"]
@@ -194,3 +197,22 @@ def test_query_bar_ticks_per_query_inline_and_per_job_in_workers(
         len(list((data_dir / s / "mapping" / "pose").iterdir())) for s in ("sA", "sB")
     )
     assert runner._query_done is None
+
+
+def test_a_map_process_that_answered_exits_by_itself(data_dir: Path, tmp_path: Path) -> None:
+    """Killing the map's process on its way out left its semaphores to the resource tracker, which
+    warned about leaks at the end of every evaluation that built maps."""
+    script = (
+        "import sys; sys.path.insert(0, sys.argv[1]); from pathlib import Path\n"
+        "from openreloc_bench.harness import runner\n"
+        "runs = [runner.MethodRun('o', 'test-oracle', {'slow_exit_s': 1.0})]\n"
+        "r = runner.evaluate(runner.EvalConfig(data=Path(sys.argv[2]), out=Path(sys.argv[3]), scenes=['sA'],\n"
+        "    runs=runs, plugins=['harness_test_methods'], timeout_s=0.0, map_timeout_s=60.0))\n"
+        "assert r.maps_built == 1 and not r.errors, r.errors\n"
+    )
+    here = str(Path(__file__).parent)
+    proc = subprocess.run(
+        [sys.executable, "-c", script, here, str(data_dir), str(tmp_path / "out")], capture_output=True, text=True
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert "leaked semaphore" not in proc.stderr

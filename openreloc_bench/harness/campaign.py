@@ -43,10 +43,14 @@ class CampaignPlan:
     """Folder holding the suite YAMLs (relative to the working directory)."""
     methods: list[str] = field(
         default_factory=lambda: [
-            "openreloc", "openreloc-paper", "goreloc", "sift-pnp", "orb-reloc", "retrieval", "posenet", "nearest-frame"
+            "openreloc", "openreloc-paper", "goreloc", "sift-pnp", "orb-reloc", "retrieval", "posenet", "nearest-frame",
+            "openreloc-oracle-association",
         ]
     )  # fmt: skip
     """Registered method names, each run on every suite."""
+    oracle_only: list[str] = field(default_factory=lambda: ["openreloc-oracle-association"])
+    """Diagnostics that read the dataset's masks at query time: where the plan runs them, they run on the
+    oracle-mask track only."""
     tracks: list[str] = field(default_factory=lambda: ["predicted", "oracle-mask"])
     """Tracks, headline first. Methods that read no masks run on the first only (their rows stand in both
     tables)."""
@@ -137,6 +141,8 @@ def plan_steps(plan: CampaignPlan) -> list[Step]:
         for suite in plan.suites:
             for track in plan.tracks:
                 for m in methods:
+                    if m in plan.oracle_only and track != "oracle-mask":
+                        continue
                     if uses_masks(m) or track == plan.tracks[0]:
                         steps.append(Step(stage, suite, track, m, tuple(splits), tuple(seeds)))
 

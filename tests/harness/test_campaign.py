@@ -52,6 +52,11 @@ def test_steps_run_headline_first_and_mask_free_methods_once(plan: campaign.Camp
     assert steps[3].splits == ("query_light1",) and steps[-1].seeds == (0, 1)
 
 
+def test_oracle_only_diagnostics_skip_the_predicted_track(plan: campaign.CampaignPlan) -> None:
+    plan.methods, plan.oracle_only, plan.splits, plan.seeds = ["test-oracle"], ["test-oracle"], ["query"], [0]
+    assert [s.key for s in campaign.plan_steps(plan)] == ["headline/tiny/oracle-mask/test-oracle"]
+
+
 def test_ablations_run_last_on_their_suites(plan: campaign.CampaignPlan) -> None:
     plan.ablation_suites = ["tiny"]
     last = campaign.plan_steps(plan)[-1]

@@ -26,6 +26,7 @@ from openreloc_bench.errors import ConfigError, DataError
 from openreloc_bench.harness import cache, runner, tables
 from openreloc_bench.harness.ablations import ABLATED_METHOD
 from openreloc_bench.harness.suites import ensure_suite_scenes
+from openreloc_bench.harness.tables import md_table
 from openreloc_bench.methods import MASK_FREE, uses_masks
 
 STAGES = ("headline", "robustness", "seeds", "ablations")
@@ -136,6 +137,7 @@ def plan_steps(plan: CampaignPlan) -> list[Step]:
     """The campaign's steps in the order they run."""
     first, rest = plan.splits[:1], plan.splits[1:]
     steps = []
+    masked = {m: uses_masks(m) for m in plan.methods}  # each answer instantiates or looks up the method
 
     def per_method(stage: str, splits: list[str], seeds: list[int], methods: list[str]) -> None:
         for suite in plan.suites:
@@ -143,7 +145,7 @@ def plan_steps(plan: CampaignPlan) -> list[Step]:
                 for m in methods:
                     if m in plan.oracle_only and track != "oracle-mask":
                         continue
-                    if uses_masks(m) or track == plan.tracks[0]:
+                    if masked[m] or track == plan.tracks[0]:
                         steps.append(Step(stage, suite, track, m, tuple(splits), tuple(seeds)))
 
     per_method("headline", first, plan.seeds[:1], plan.methods)
@@ -260,10 +262,9 @@ def _run_steps(cfg: CampaignConfig, ledger: Ledger, say: Callable[[str], None]) 
 def timings(ledger: Ledger) -> pd.DataFrame:
     """Wall time of every recorded step, longest first."""
     rows = [
-        {"step": key, "stage": key.split("/")[0], "wall_s": rec["wall_s"], "errors": len(rec["errors"])}
-        for key, rec in ledger.data["steps"].items()
+        {"step": key, "stage": key.split("/")[0], "wall_s": rec["wall_s"]} for key, rec in ledger.data["steps"].items()
     ]
-    return pd.DataFrame(rows, columns=["step", "stage", "wall_s", "errors"]).sort_values("wall_s", ascending=False)
+    return pd.DataFrame(rows, columns=["step", "stage", "wall_s"]).sort_values("wall_s", ascending=False)
 
 
 def render(cfg: CampaignConfig, ledger: Ledger, say: Callable[[str], None]) -> None:
@@ -307,13 +308,11 @@ def campaign_page(ledger: Ledger, suite_rows: pd.DataFrame, pending: list[str], 
         f"Wall time of the recorded steps: {total / 3600:.2f} h ({len(t)} steps); "
         f"{len(pending)} step(s) of the plan still to run.",
         "",
-        "| Stage | Wall [h] | Share [%] |",
-        "|---|---|---|",
     ]
     by_stage = t.groupby("stage")["wall_s"].sum()
-    for stage in ["generate", *STAGES]:
-        if stage in by_stage:
-            lines.append(f"| {stage} | {by_stage[stage] / 3600:.2f} | {100 * by_stage[stage] / max(total, 1e-9):.0f} |")
+    stages = [s for s in ["generate", *STAGES] if s in by_stage]
+    shares = [[s, f"{by_stage[s] / 3600:.2f}", f"{100 * by_stage[s] / max(total, 1e-9):.0f}"] for s in stages]
+    lines += md_table(["Stage", "Wall [h]", "Share [%]"], shares)
     lines += ["", "Longest steps:", ""] + [f"- `{r.step}`: {r.wall_s / 60:.1f} min" for r in t.head(8).itertuples()]
     if pending:
         lines += ["", "Still to run:", ""] + [f"- `{p}`" for p in pending]
@@ -321,11 +320,12 @@ def campaign_page(ledger: Ledger, suite_rows: pd.DataFrame, pending: list[str], 
         head = suite_rows[suite_rows["split"] == plan.splits[0]]
         lines += ["", f"## Summary: R@50cm / R@25cm [%] on the {plan.splits[0]} split", ""]
         suites = [s for s in plan.suites if s in set(head["suite"])]
-        lines += ["| Method | Track | " + " | ".join(suites) + " |", "|" + "---|" * (len(suites) + 2)]
         order = {t: k for k, t in enumerate([*plan.tracks, MASK_FREE])}
         head = head[head["method"].isin(plan.methods)]
         head = head.assign(_rank=head["track"].map(lambda x: order.get(x, len(order))))
+        rows = []
         for (method, track), g in head.sort_values(["_rank", "method"]).groupby(["method", "track"], sort=False):
             cells = {r.suite: f"{r.recall_50cm:.1f} / {r.recall_25cm:.1f}" for r in g.itertuples()}
-            lines.append(f"| {method} | {track} | " + " | ".join(cells.get(s, "-") for s in suites) + " |")
+            rows.append([method, track, *(cells.get(s, "-") for s in suites)])
+        lines += md_table(["Method", "Track", *suites], rows)
     return "\n".join(lines) + "\n"

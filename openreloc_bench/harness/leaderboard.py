@@ -22,7 +22,14 @@ from openreloc_bench.errors import DataError  # noqa: E402
 from openreloc_bench.harness.ablations import ROBUSTNESS_ROWS  # noqa: E402
 from openreloc_bench.harness.metrics import cumulative_curve  # noqa: E402
 from openreloc_bench.harness.score import QUERY_COLUMNS  # noqa: E402
-from openreloc_bench.harness.tables import SCENE_KEYS, build_tables, paper_table, pool_seeds, read_query_csv  # noqa: E402
+from openreloc_bench.harness.tables import (  # noqa: E402
+    SCENE_KEYS,
+    build_tables,
+    md_table,
+    paper_table,
+    pool_seeds,
+    read_query_csv,
+)
 from openreloc_bench.methods import MASK_FREE, uses_masks  # noqa: E402
 
 BOARD_COLUMNS = {
@@ -179,11 +186,11 @@ def to_markdown(b: pd.DataFrame, scenes: pd.DataFrame) -> str:
             "",
             f"## {title}",
             "",
-            *_md_table(head, [[_fmt(c, r[c]) for c in b.columns] for _, r in t.iterrows()]),
+            *md_table(head, [[_fmt(c, r[c]) for c in b.columns] for _, r in t.iterrows()]),
         ]
     drops = robustness_drops(b)
     if not drops.empty:
-        lines += ["", f"## {ROBUSTNESS_TITLE}", "", *_md_table(list(drops.columns), drops.values.tolist())]
+        lines += ["", f"## {ROBUSTNESS_TITLE}", "", *md_table(list(drops.columns), drops.values.tolist())]
     scenes = scenes.assign(_rank=_track_rank(scenes["track"])).sort_values(["_rank", "split"], kind="stable")
     for (track, split), t in scenes.groupby(["track", "split"], sort=False):
         rows = [(m, {"method": m}) for m in b[(b.track == track) & (b.split == split)]["method"]]
@@ -197,7 +204,7 @@ def to_markdown(b: pd.DataFrame, scenes: pd.DataFrame) -> str:
     sizes = scenes.pivot_table(index=["method", "track"], columns="scene", values="map_mb", aggfunc="mean")
     if not sizes.empty:
         rows = [[method, track, *(_fmt("map_mb", v) for v in row)] for (method, track), row in sizes.iterrows()]
-        lines += ["", "## Map size per scene [MB]", "", *_md_table(["Method", "Track", *sizes.columns], rows)]
+        lines += ["", "## Map size per scene [MB]", "", *md_table(["Method", "Track", *sizes.columns], rows)]
     return "\n".join(lines) + "\n"
 
 
@@ -222,12 +229,6 @@ def _html_table(title: str, head: list[str], rows: list[list[str]]) -> str:
         f"<h2>{html.escape(title)}</h2>\n"
         f'<div class="scroll"><table class="sortable"><thead><tr>{heads}</tr></thead><tbody>{cells}</tbody></table></div>\n'
     )
-
-
-def _md_table(head: list[str], rows: list[list[str]]) -> list[str]:
-    return ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)] + [
-        "| " + " | ".join(map(str, r)) + " |" for r in rows
-    ]
 
 
 def to_html(b: pd.DataFrame, plots: list[str]) -> str:
@@ -267,6 +268,12 @@ threshold. Click a column header to sort. {html.escape(provenance(b))}</p>
 # --------------------------------------------------------------------------------------------
 
 
+def _save(fig: plt.Figure, path: Path) -> None:
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
 def plot_cumulative(q: pd.DataFrame, col: str, xmax: float, xlabel: str, path: Path) -> None:
     """Share of queries under each error, one curve per (method, track) on the plain query split."""
     grid = np.linspace(0, xmax, 400)
@@ -276,9 +283,7 @@ def plot_cumulative(q: pd.DataFrame, col: str, xmax: float, xlabel: str, path: P
     ax.set(xlabel=xlabel, ylabel="queries [%]", ylim=(0, 100), xlim=(0, xmax), title=f"Cumulative {xlabel}")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    _save(fig, path)
 
 
 def plot_scene_recall(scenes: pd.DataFrame, path: Path) -> None:
@@ -297,9 +302,7 @@ def plot_scene_recall(scenes: pd.DataFrame, path: Path) -> None:
     ax.set_xticks(x + width * (len(labels) - 1) / 2, names, rotation=30, ha="right")
     ax.set(ylabel="recall [%]  (light @50cm, dark @25cm)", ylim=(0, 100), title="Recall per scene")
     ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    _save(fig, path)
 
 
 TRACK_MARKERS = {"predicted": "o", "oracle-mask": "s", MASK_FREE: "^"}
@@ -324,9 +327,7 @@ def plot_recall_vs_map_size(suite: pd.DataFrame, path: Path) -> None:
     ax.set_title("Recall vs map size (query split)")
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=7, loc="center left", bbox_to_anchor=(1.0, 0.5))
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    _save(fig, path)
 
 
 LIGHT_SPLITS = ("query", "query_light1", "query_light2", "query_light3", "query_light4")
@@ -359,9 +360,7 @@ def plot_recall_vs_lighting(suite: pd.DataFrame, path: Path) -> bool:
     ax.set_title("Recall vs lighting")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7, loc="center left", bbox_to_anchor=(1.0, 0.5))
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    _save(fig, path)
     return True
 
 
@@ -383,9 +382,7 @@ def plot_topdown(q: pd.DataFrame, scene: str, path: Path) -> None:
         ax.grid(alpha=0.3)
     axes[0][0].legend(fontsize=7, loc="best")
     fig.suptitle(f"{scene}: camera positions, top-down")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    _save(fig, path)
 
 
 def write_leaderboard(results: list[Path], out: Path) -> list[Path]:

@@ -49,6 +49,9 @@ def run(args: argparse.Namespace) -> int:
         for k, step in enumerate(steps, 1):
             state = "done" if ledger and ledger.done(step) else "to run"
             print(f"{k:3d}/{len(steps)} {state:6s} {step.key}: {', '.join(step.splits)}; seeds {list(step.seeds)}")
+        n_done = sum(ledger.done(s) for s in steps) if ledger else 0
+        left = campaign.remaining_s(steps, ledger) if ledger else None
+        print(f"{n_done} of {len(steps)} steps done{campaign.left_text(left) if n_done < len(steps) else ''}")
         return 0
     cfg = campaign.CampaignConfig(
         plan=plan, data=args.data, work=args.work, out=args.out, executor=args.executor, workers=args.workers,

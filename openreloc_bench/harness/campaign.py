@@ -242,7 +242,8 @@ def _run_steps(cfg: CampaignConfig, ledger: Ledger, say: Callable[[str], None]) 
             scenes[step.suite] = ensure_suite_scenes(suite_path(cfg.plan, step.suite), cfg.data)
             if f"generate/{step.suite}" not in ledger.data["steps"]:
                 ledger.add(f"generate/{step.suite}", {"wall_s": time.perf_counter() - t0, "errors": []})
-        say(f"[{k}/{len(steps)}] {step.key}: {', '.join(step.splits)}; seeds {', '.join(map(str, step.seeds))}")
+        say(f"[{k}/{len(steps)}] {step.key}: {', '.join(step.splits)}; seeds {', '.join(map(str, step.seeds))}"
+            f"{left_text(remaining_s(steps, ledger))}")  # fmt: skip
         serial = cfg.executor == "local" and step.method in cfg.plan.serial_methods
         ecfg = runner.EvalConfig(
             data=cfg.data, out=cfg.work / step.suite, scenes=scenes[step.suite],
@@ -255,7 +256,7 @@ def _run_steps(cfg: CampaignConfig, ledger: Ledger, say: Callable[[str], None]) 
             say(f"error: {err}")
         failed += bool(report.errors)
         ledger.add(step.key, {"step": step.record(), "wall_s": report.wall_s, "errors": report.errors,
-                              "queries": report.queries, "maps_built": report.maps_built})  # fmt: skip
+                              "queries": report.queries, "maps_built": report.maps_built, "maps_s": report.maps_s})  # fmt: skip
     return failed
 
 
@@ -265,6 +266,53 @@ def timings(ledger: Ledger) -> pd.DataFrame:
         {"step": key, "stage": key.split("/")[0], "wall_s": rec["wall_s"]} for key, rec in ledger.data["steps"].items()
     ]
     return pd.DataFrame(rows, columns=["step", "stage", "wall_s"]).sort_values("wall_s", ascending=False)
+
+
+def new_jobs(steps: list[Step]) -> list[int]:
+    """How many (variant, split, seed) runs per scene each step adds to the ones before it: ``eval``
+    skips what an earlier step of the same suite and track finished (the seeds stage repeats seed 0)."""
+    seen: set[tuple[str, str, str, str, int]] = set()
+    counts = []
+    for s in steps:
+        labels = [r.label for r in runner.variant_runs([s.method], {}, s.ablations)]
+        jobs = {(s.suite, s.track, lab, sp, sd) for lab in labels for sp in s.splits for sd in s.seeds} - seen
+        seen |= jobs
+        counts.append(len(jobs))
+    return counts
+
+
+def remaining_s(steps: list[Step], ledger: Ledger) -> float | None:
+    """About how long the unfinished steps take at the pace of the finished ones: query time per new run,
+    plus map-building time for the steps that build maps (the headline and the ablations), each taken
+    from the same method on the same suite, else any method on that suite, else any step. None before a
+    step has finished."""
+    jobs = dict(zip([s.key for s in steps], new_jobs(steps), strict=True))
+    done = {s.key: (s, ledger.data["steps"][s.key]) for s in steps if ledger.done(s)}
+    if not done:
+        return None
+
+    def pace(
+        step: Step, spent: Callable[[dict[str, Any]], float], units: Callable[[Step, dict[str, Any]], float]
+    ) -> float:
+        """Seconds per unit over the finished steps most like ``step`` (``spent`` and ``units`` of each)."""
+        for like in (lambda x: (x.suite, x.method), lambda x: x.suite, lambda x: None):
+            picked = [(d, rec) for d, rec in done.values() if units(d, rec) and like(d) == like(step)]
+            if picked:
+                return sum(spent(rec) for _, rec in picked) / sum(units(d, rec) for d, rec in picked)
+        return 0.0
+
+    total = 0.0
+    for s in steps:
+        if s.key not in done:
+            total += jobs[s.key] * pace(s, lambda r: r["wall_s"] - r.get("maps_s", 0.0), lambda d, r: jobs[d.key])
+            if s.stage == "headline" or s.ablations:
+                total += pace(s, lambda r: r.get("maps_s", 0.0), lambda d, r: float(r.get("maps_built", 0) > 0))
+    return total
+
+
+def left_text(left_s: float | None) -> str:
+    """``remaining_s`` for people (empty before a step has finished)."""
+    return "" if left_s is None else f" (about {left_s / 3600:.1f} h left at the pace so far)"
 
 
 def render(cfg: CampaignConfig, ledger: Ledger, say: Callable[[str], None]) -> None:
@@ -289,16 +337,20 @@ def render(cfg: CampaignConfig, ledger: Ledger, say: Callable[[str], None]) -> N
             browser.screenshot(board / "index.html", board / "screenshot.png")
         elif cfg.screenshot:
             say(f"no screenshot of {board / 'index.html'}: {browser.MISSING}")
-    pending = [s.key for s in plan_steps(cfg.plan) if not ledger.done(s)]
-    text = campaign_page(ledger, pd.concat(summaries) if summaries else pd.DataFrame(), pending, cfg.plan)
+    steps = plan_steps(cfg.plan)
+    pending = [s.key for s in steps if not ledger.done(s)]
+    rows = pd.concat(summaries) if summaries else pd.DataFrame()
+    text = campaign_page(ledger, rows, pending, cfg.plan, remaining_s(steps, ledger))
     io.atomic_write_text(cfg.out / "campaign.md", text)
     say(text.split("\n## Summary")[0].rstrip())
     say(f"boards in {cfg.out}")
 
 
-def campaign_page(ledger: Ledger, suite_rows: pd.DataFrame, pending: list[str], plan: CampaignPlan) -> str:
-    """``campaign.md``: the commit, the wall time by stage and the longest steps, what is still to run,
-    and the headline-split recall of every method on every suite and track."""
+def campaign_page(
+    ledger: Ledger, suite_rows: pd.DataFrame, pending: list[str], plan: CampaignPlan, left_s: float | None = None
+) -> str:
+    """``campaign.md``: the commit, the wall time by stage and the longest steps, what is still to run
+    (and about how long, ``left_s``), and the headline-split recall of every method on every suite and track."""
     t = timings(ledger)
     total = t["wall_s"].sum()
     lines = [
@@ -306,7 +358,7 @@ def campaign_page(ledger: Ledger, suite_rows: pd.DataFrame, pending: list[str], 
         "",
         f"Every row of the boards below comes from commit `{ledger.data['commit']}`.",
         f"Wall time of the recorded steps: {total / 3600:.2f} h ({len(t)} steps); "
-        f"{len(pending)} step(s) of the plan still to run.",
+        f"{len(pending)} step(s) of the plan still to run{left_text(left_s) if pending else ''}.",
         "",
     ]
     by_stage = t.groupby("stage")["wall_s"].sum()

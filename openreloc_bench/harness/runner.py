@@ -432,6 +432,8 @@ class EvalReport:
     """Of these, the ones with an estimate."""
     errors: list[str] = field(default_factory=list)
     wall_s: float = 0.0
+    maps_s: float = 0.0
+    """Of ``wall_s``, the time spent building maps."""
 
 
 def map_track(method: Relocalizer, track: str) -> str:
@@ -592,6 +594,7 @@ def _evaluate(cfg: EvalConfig, map_jobs: list[MapJob], query_jobs: list[QueryJob
                 bar.set_postfix(errors=len(report.errors))
             else:
                 report.maps_built += 1
+    report.maps_s = time.perf_counter() - t0
     todo = []
     for j in query_jobs:
         if j.map_dir in failed_maps:

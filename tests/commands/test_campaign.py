@@ -26,6 +26,7 @@ def test_list_prints_every_step_and_runs_nothing(plan: Path, tmp_path: Path, cap
     assert main(["campaign", str(plan), "--data", str(tmp_path / "d"), "--work", str(tmp_path / "w"), "--list"]) == 0
     out = capsys.readouterr().out
     assert "1/1 to run headline/tiny/predicted/nearest-frame: query; seeds [0]" in out
+    assert out.endswith("0 of 1 steps done\n")
     assert not (tmp_path / "w").exists() and not (tmp_path / "d").exists()
 
 
@@ -39,6 +40,10 @@ def test_trial_run_writes_the_board_and_the_campaign_page(
     assert "Wall time of the recorded steps" in out and "0 step(s) of the plan still to run" in out
     assert (tmp_path / "board" / "tiny" / "index.html").is_file()
     assert "| nearest-frame | mask-free |" in (tmp_path / "board" / "campaign.md").read_text()
+    assert main([*args[:6], "--list"]) == 0
+    assert capsys.readouterr().out.endswith(
+        "1/1 done   headline/tiny/predicted/nearest-frame: query; seeds [0]\n1 of 1 steps done\n"
+    )
 
 
 @pytest.mark.parametrize(

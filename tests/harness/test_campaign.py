@@ -65,6 +65,24 @@ def test_ablations_run_last_on_their_suites(plan: campaign.CampaignPlan) -> None
     assert labels[0] == "openreloc" and len(labels) == 11 and all(x.startswith("openreloc+") for x in labels[1:])
 
 
+def test_each_step_counts_only_the_runs_no_earlier_step_made(plan: campaign.CampaignPlan) -> None:
+    plan.ablation_suites = ["tiny"]
+    # the seeds stage repeats seed 0 (already run); the ablation step adds every ablation row
+    assert campaign.new_jobs(campaign.plan_steps(plan)) == [1, 1, 1, 1, 1, 1, 2, 2, 11]
+
+
+def test_time_left_comes_from_the_pace_of_like_steps(plan: campaign.CampaignPlan, tmp_path: Path) -> None:
+    steps = campaign.plan_steps(plan)
+    ledger = campaign.Ledger(tmp_path, "a" * 40)
+    assert campaign.remaining_s(steps, ledger) is None and campaign.left_text(None) == ""
+    for step, wall, maps in [(steps[0], 100.0, 60.0), (steps[1], 30.0, 10.0)]:
+        ledger.add(step.key, {"step": step.record(), "errors": [], "wall_s": wall, "maps_s": maps, "maps_built": 1})
+    # test-oracle: 40 s a run + 60 s of maps in the headline; nearest-frame: 20 s a run
+    headline, robustness, seeds = 40 + 60, 40 + 20 + 40, 2 * 40 + 2 * 40
+    assert campaign.remaining_s(steps, ledger) == pytest.approx(headline + robustness + seeds)
+    assert campaign.left_text(360.0) == " (about 0.1 h left at the pace so far)"
+
+
 def test_campaign_renders_one_board_per_suite_and_resumes(
     plan: campaign.CampaignPlan, tmp_path: Path, commit: list[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -80,7 +98,7 @@ def test_campaign_renders_one_board_per_suite_and_resumes(
     assert rows["test-oracle", "predicted", "query"].n_seeds == 2 and set(board["git_commit"]) == {commit[0]}
     assert rows["test-oracle", "predicted", "query"].n_queries == 4  # 2 queries x 2 seeds
     page = (tmp_path / "board" / "campaign.md").read_text()
-    assert f"commit `{commit[0]}`" in page and "0 step(s) of the plan still to run" in page
+    assert f"commit `{commit[0]}`" in page and "0 step(s) of the plan still to run." in page
     assert "| test-oracle | predicted |" in page and "| nearest-frame | mask-free |" in page
     md = (tmp_path / "board" / "tiny" / "leaderboard.md").read_text()
     assert "Robustness" in md and f"Every row comes from commit {commit[0][:12]}." in md

@@ -31,6 +31,7 @@ def test_eval_writes_poses_tum_tables_and_provenance(data_dir: Path, tmp_path: P
     ]
     report = runner.evaluate(cfg(data_dir, tmp_path, runs, splits=["query", "query_light1"]))
     assert report.errors == [] and report.maps_built == 4 and report.jobs_run == 8
+    assert 0 < report.maps_s < report.wall_s
     d = tmp_path / "runs" / "test-oracle" / "oracle-mask" / "sA"
     poses = read_results(d / "query.txt")
     assert sorted(poses) == [f"query/{i:06d}" for i in range(3)]

@@ -46,10 +46,11 @@ def run(args: argparse.Namespace) -> int:
     if args.list:
         ledger = campaign.Ledger(args.work, cache.git_commit()) if (args.work / "campaign.json").is_file() else None
         steps = campaign.plan_steps(plan)
-        for k, step in enumerate(steps, 1):
-            state = "done" if ledger and ledger.done(step) else "to run"
+        done = [bool(ledger and ledger.done(step)) for step in steps]
+        for k, (step, is_done) in enumerate(zip(steps, done, strict=True), 1):
+            state = "done" if is_done else "to run"
             print(f"{k:3d}/{len(steps)} {state:6s} {step.key}: {', '.join(step.splits)}; seeds {list(step.seeds)}")
-        n_done = sum(ledger.done(s) for s in steps) if ledger else 0
+        n_done = sum(done)
         left = campaign.remaining_s(steps, ledger) if ledger else None
         print(f"{n_done} of {len(steps)} steps done{campaign.left_text(left) if n_done < len(steps) else ''}")
         return 0

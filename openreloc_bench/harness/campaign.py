@@ -26,7 +26,6 @@ from openreloc_bench.errors import ConfigError, DataError
 from openreloc_bench.harness import cache, runner, tables
 from openreloc_bench.harness.ablations import ABLATED_METHOD
 from openreloc_bench.harness.suites import ensure_suite_scenes
-from openreloc_bench.harness.tables import md_table
 from openreloc_bench.methods import MASK_FREE, uses_masks
 
 STAGES = ("headline", "robustness", "seeds", "ablations")
@@ -364,7 +363,7 @@ def campaign_page(
     by_stage = t.groupby("stage")["wall_s"].sum()
     stages = [s for s in ["generate", *STAGES] if s in by_stage]
     shares = [[s, f"{by_stage[s] / 3600:.2f}", f"{100 * by_stage[s] / max(total, 1e-9):.0f}"] for s in stages]
-    lines += md_table(["Stage", "Wall [h]", "Share [%]"], shares)
+    lines += tables.md_table(["Stage", "Wall [h]", "Share [%]"], shares)
     lines += ["", "Longest steps:", ""] + [f"- `{r.step}`: {r.wall_s / 60:.1f} min" for r in t.head(8).itertuples()]
     if pending:
         lines += ["", "Still to run:", ""] + [f"- `{p}`" for p in pending]
@@ -379,5 +378,5 @@ def campaign_page(
         for (method, track), g in head.sort_values(["_rank", "method"]).groupby(["method", "track"], sort=False):
             cells = {r.suite: f"{r.recall_50cm:.1f} / {r.recall_25cm:.1f}" for r in g.itertuples()}
             rows.append([method, track, *(cells.get(s, "-") for s in suites)])
-        lines += md_table(["Method", "Track", *suites], rows)
+        lines += tables.md_table(["Method", "Track", *suites], rows)
     return "\n".join(lines) + "\n"

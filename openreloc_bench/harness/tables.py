@@ -191,16 +191,14 @@ def md_table(head: list[str], rows: list[list[Any]]) -> list[str]:
 def paper_table(scenes: pd.DataFrame, rows: list[tuple[str, dict[str, str]]], scene_names: list[str]) -> str:
     """Markdown table: one line per (title, column filter), cells '@50cm / @25cm' per metric and scene."""
     header = ["Setting"] + [f"{m} {s}" for m, _, _ in _PAPER_METRICS for s in scene_names]
-    lines = []
+    body = []
     for title, where in rows:
         sel = scenes
         for k, v in where.items():
             sel = sel[sel[k] == v]
         by_scene = {r["scene"]: r for _, r in sel.iterrows()}
-        lines.append(
-            [title, *(_cell(by_scene.get(s), col, fmt) for _, col, fmt in _PAPER_METRICS for s in scene_names)]
-        )
-    return "\n".join(md_table(header, lines)) + "\n"
+        body.append([title, *(_cell(by_scene.get(s), col, fmt) for _, col, fmt in _PAPER_METRICS for s in scene_names)])
+    return "\n".join(md_table(header, body)) + "\n"
 
 
 def paper_tables(scenes: pd.DataFrame) -> dict[str, str]:

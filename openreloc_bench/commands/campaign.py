@@ -44,7 +44,9 @@ def run(args: argparse.Namespace) -> int:
 
     plan = campaign.load_plan(args.plan)
     if args.list:
-        ledger = campaign.Ledger(args.work, cache.git_commit()) if (args.work / "campaign.json").is_file() else None
+        ledger = campaign.Ledger(args.work, None) if (args.work / "campaign.json").is_file() else None
+        if ledger and ledger.data.get("commit") != cache.git_commit():
+            print(f"{args.work} holds a campaign run at commit {ledger.data.get('commit')}, not this checkout's")
         steps = campaign.plan_steps(plan)
         done = [bool(ledger and ledger.done(step)) for step in steps]
         for k, (step, is_done) in enumerate(zip(steps, done, strict=True), 1):

@@ -186,16 +186,20 @@ class CampaignConfig:
 
 
 class Ledger:
-    """``WORK/campaign.json``: the campaign's commit, and each finished step with its wall time."""
+    """``WORK/campaign.json``: the campaign's commit, and each finished step with its wall time.
 
-    def __init__(self, work: Path, commit: str):
+    ``commit`` is the checkout's: a ledger begun at another commit is refused, since its rows and new ones
+    would mix. ``None`` opens it whatever its commit, to read it only (``--list`` from another checkout).
+    """
+
+    def __init__(self, work: Path, commit: str | None):
         self.path = work / "campaign.json"
         self.data: dict[str, Any] = {"commit": commit, "steps": {}}
         if self.path.is_file():
             self.data = io.read_json(self.path)
             if not isinstance(self.data, dict) or not isinstance(self.data.get("steps"), dict):
                 raise DataError(self.path, "not a campaign record (remove it to start the campaign afresh)")
-            if self.data.get("commit") != commit:
+            if commit is not None and self.data.get("commit") != commit:
                 raise ConfigError(
                     f"{work} holds a campaign run at commit {self.data.get('commit')}, this checkout is at {commit}: "
                     "check that commit out to go on with it, or give another --work"
@@ -284,9 +288,11 @@ def remaining_s(steps: list[Step], ledger: Ledger) -> float | None:
     """About how long the unfinished steps take at the pace of the finished ones: query time per new run,
     plus map-building time for the steps that build maps (the headline and the ablations), each taken
     from the same method on the same suite, else any method on that suite, else any step. None before a
-    step has finished."""
+    step has finished. Records without ``maps_s`` (written before it existed) are left out: they cannot
+    tell map time from query time, and pacing the seeds stage on the headline's map time overshoots."""
     jobs = dict(zip([s.key for s in steps], new_jobs(steps), strict=True))
     done = {s.key: (s, ledger.data["steps"][s.key]) for s in steps if ledger.done(s)}
+    done = {k: v for k, v in done.items() if "maps_s" in v[1]}
     if not done:
         return None
 
@@ -303,9 +309,9 @@ def remaining_s(steps: list[Step], ledger: Ledger) -> float | None:
     total = 0.0
     for s in steps:
         if s.key not in done:
-            total += jobs[s.key] * pace(s, lambda r: r["wall_s"] - r.get("maps_s", 0.0), lambda d, r: jobs[d.key])
+            total += jobs[s.key] * pace(s, lambda r: r["wall_s"] - r["maps_s"], lambda d, r: jobs[d.key])
             if s.stage == "headline" or s.ablations:
-                total += pace(s, lambda r: r.get("maps_s", 0.0), lambda d, r: float(r.get("maps_built", 0) > 0))
+                total += pace(s, lambda r: r["maps_s"], lambda d, r: float(r.get("maps_built", 0) > 0))
     return total
 
 

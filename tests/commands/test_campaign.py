@@ -7,6 +7,8 @@ from pathlib import Path
 import pytest
 
 from openreloc_bench.cli import main
+from openreloc_bench.data import io
+from openreloc_bench.harness import campaign
 
 SUITE = "name: tiny\nscenes:\n  - {name: t1, seed: 3, width: 32, height: 24, n_query: 2, max_mapping_frames: 2, n_displaced: 0}\n"
 
@@ -44,6 +46,18 @@ def test_trial_run_writes_the_board_and_the_campaign_page(
     assert capsys.readouterr().out.endswith(
         "1/1 done   headline/tiny/predicted/nearest-frame: query; seeds [0]\n1 of 1 steps done\n"
     )
+
+
+def test_list_reads_a_campaign_begun_at_another_commit(
+    plan: Path, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    step = campaign.plan_steps(campaign.load_plan(plan))[0]
+    record = {"step": step.record(), "errors": [], "wall_s": 5.0, "maps_s": 1.0, "maps_built": 1}
+    io.write_json(tmp_path / "w" / "campaign.json", {"commit": "f" * 40, "steps": {step.key: record}})
+    assert main(["campaign", str(plan), "--data", str(tmp_path / "d"), "--work", str(tmp_path / "w"), "--list"]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith(f"{tmp_path / 'w'} holds a campaign run at commit {'f' * 40}, not this checkout's\n")
+    assert out.endswith(f"  1/1 done   {step.key}: query; seeds [0]\n1 of 1 steps done\n")
 
 
 @pytest.mark.parametrize(

@@ -83,6 +83,13 @@ def test_time_left_comes_from_the_pace_of_like_steps(plan: campaign.CampaignPlan
     assert campaign.left_text(360.0) == " (about 0.1 h left at the pace so far)"
 
 
+def test_time_left_ignores_records_without_map_time(plan: campaign.CampaignPlan, tmp_path: Path) -> None:
+    steps = campaign.plan_steps(plan)
+    ledger = campaign.Ledger(tmp_path, "a" * 40)
+    ledger.add(steps[0].key, {"step": steps[0].record(), "errors": [], "wall_s": 100.0, "maps_built": 1})
+    assert ledger.done(steps[0]) and campaign.remaining_s(steps, ledger) is None
+
+
 def test_campaign_renders_one_board_per_suite_and_resumes(
     plan: campaign.CampaignPlan, tmp_path: Path, commit: list[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:

@@ -2,7 +2,7 @@
 scene's object boxes), frames kept, and what invalid-object filtering removes: the reference-frame
 frequency of every ground-truth category, structural (wall/floor/ceiling...) vs furniture.
 
-    python benchmarks/bench_mapping.py /tmp/orb-data/smoke-room [more scenes] [--encoder offline]
+    python benchmarks/bench_mapping.py DATA/smoke-room [more scenes] [--encoder offline]
         [--segmenter noisy-gt] [--out results.json]
 
 Builds the oracle-mask map (dataset masks) and, with ``--segmenter``, the clustered map, for each

@@ -31,7 +31,7 @@ THRESHOLDS = (0.05, 0.1, 0.2, 0.3, 0.4, 0.5)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    # the defaults are the recipe of the shipped weights (openreloc_bench/vision/weights/segmenter/card.json)
+    # the defaults, but for --threads, are the recipe of the shipped weights (vision/weights/segmenter/card.json)
     p.add_argument("--out", type=Path, required=True, help="weights directory to write")
     p.add_argument("--seed", type=int, default=0, help="training seed (also picks the scene seeds)")
     p.add_argument("--device", default="cpu", help="torch device of the training steps: cpu, cuda, cuda:N")
@@ -46,7 +46,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--width", type=int, default=640, help="render width of the generated scenes")
     p.add_argument("--height", type=int, default=480, help="render height of the generated scenes")
     p.add_argument("--workers", type=int, default=2, help="parallel scene generation processes")
-    p.add_argument("--threads", type=int, default=2, help="torch CPU threads")
+    p.add_argument(
+        "--threads", type=int, default=2, help="torch CPU threads (the shipped weights: 1, on a loaded machine)"
+    )
 
 
 def _scene_dirs(root: Path) -> list[Path]:

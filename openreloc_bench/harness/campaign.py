@@ -291,8 +291,8 @@ def remaining_s(steps: list[Step], ledger: Ledger) -> float | None:
     step has finished. Records without ``maps_s`` (written before it existed) are left out: they cannot
     tell map time from query time, and pacing the seeds stage on the headline's map time overshoots."""
     jobs = dict(zip([s.key for s in steps], new_jobs(steps), strict=True))
-    done = {s.key: (s, ledger.data["steps"][s.key]) for s in steps if ledger.done(s)}
-    done = {k: v for k, v in done.items() if "maps_s" in v[1]}
+    recs = ledger.data["steps"]
+    done = {s.key: (s, recs[s.key]) for s in steps if ledger.done(s) and "maps_s" in recs[s.key]}
     if not done:
         return None
 

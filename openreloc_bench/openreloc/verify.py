@@ -231,9 +231,7 @@ def verify_matches(
             break
         if all(np.linalg.norm(cameras[k] - cameras[j]) >= cfg.mode_separation for j in starts):
             starts.append(k)
-    optimised = [
-        c for c in (_consensus(table, iou[k], scores[k], R[k], t[k], centers, K, cfg) for k in starts) if c is not None
-    ]
+    optimised = [c for c in _consensus(table, iou[starts], scores[starts], R[starts], t[starts], centers, K, cfg) if c]
     kept: list[Verification] = []
     for assignment, T_wc, _ in sorted(optimised, key=lambda c: -c[2]):
         if len(kept) >= max(1, cfg.modes):
@@ -252,36 +250,45 @@ def verify_matches(
 def _consensus(
     table: _CandidateTable,
     iou: np.ndarray,
-    score: float,
+    scores: np.ndarray,
     R: np.ndarray,
     t: np.ndarray,
     centers: np.ndarray,
     K: np.ndarray,
     cfg: VerifyConfig,
-) -> tuple[dict[int, int], np.ndarray, float] | None:
-    """(assignment, T_wc, score) of one sampled pose (R, t world to camera, ``iou`` its row of overlaps,
-    ``score`` its score): its inliers, the pose re-fitted to them while that raises the score
-    (LO-RANSAC); None below ``min_inliers``."""
-    assignment = table.assign(iou)
-    score = float(score)
+) -> list[tuple[dict[int, int], np.ndarray, float] | None]:
+    """(assignment, T_wc, score) of each sampled pose k (R[k], t[k] world to camera, ``iou[k]`` its row of
+    overlaps, ``scores[k]`` its score): its inliers, the pose re-fitted to them while that raises the
+    score (LO-RANSAC); None below ``min_inliers``. The poses' refits run side by side, one batch a round."""
+    assignments = [table.assign(row) for row in iou]
+    score = [float(v) for v in scores]
+    R, t = R.copy(), t.copy()
+    going = list(range(len(R)))  # poses whose last refit raised their score
     for _ in range(cfg.refits):
         if cfg.box_fit:
-            refit = table.fit_boxes(assignment, R, t) if len(assignment) >= 3 else None
-        elif len(assignment) >= 4:
-            T = solve_pnp(centers[list(assignment.values())], np.array([table.centroid[q] for q in assignment]), K)
-            refit = None if T is None else (T[:3, :3], T[:3, 3])
+            ready = [k for k in going if len(assignments[k]) >= 3]
+            fits = table.fit_boxes([table.flat_indices(assignments[k]) for k in ready], R[ready], t[ready])
         else:
-            refit = None
-        if refit is None:
+            ready = [k for k in going if len(assignments[k]) >= 4]
+            fits = []
+            for k in ready:
+                a = assignments[k]
+                T = solve_pnp(centers[list(a.values())], np.array([table.centroid[q] for q in a]), K)
+                fits.append(None if T is None else (T[:3, :3], T[:3, 3]))
+        refit = [(k, fit) for k, fit in zip(ready, fits) if fit is not None]
+        if not refit:
             break
-        new_iou = table.overlaps(refit[0][None], refit[1][None])[0]
-        new_score = float(table.score(new_iou[None])[0])
-        if new_score <= score:
-            break
-        assignment, (R, t), score = table.assign(new_iou), refit, new_score
-    if len(assignment) < cfg.min_inliers:
-        return None
-    return assignment, geometry.invert(geometry.make_pose(R, t)), score
+        new_iou = table.overlaps(np.stack([fit[0] for _, fit in refit]), np.stack([fit[1] for _, fit in refit]))
+        new_scores = table.score(new_iou)
+        going = []
+        for (k, fit), row, new_score in zip(refit, new_iou, new_scores):
+            if float(new_score) > score[k]:
+                assignments[k], (R[k], t[k]), score[k] = table.assign(row), fit, float(new_score)
+                going.append(k)
+    return [
+        (a, geometry.invert(geometry.make_pose(R[k], t[k])), score[k]) if len(a) >= cfg.min_inliers else None
+        for k, a in enumerate(assignments)
+    ]
 
 
 class _CandidateTable:
@@ -322,12 +329,24 @@ class _CandidateTable:
         self.usable = usable
 
     def fit_boxes(
-        self, assignment: dict[int, int], R: np.ndarray, t: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray] | None:
-        """(R, t) world to camera, started at (R, t), whose projected boxes of the assigned landmarks best
-        fit their masks' boxes (:func:`fit_boxes`)."""
-        flat = np.array([self.pair[q, row] for q, row in assignment.items()])
-        return fit_boxes(self.E[flat], self.box[flat], self.K, self.size, R, t, self.cfg.box_scale)
+        self, flat: list[np.ndarray], R: np.ndarray, t: np.ndarray
+    ) -> list[tuple[np.ndarray, np.ndarray] | None]:
+        """For each start s: (R, t) world to camera, started at (R[s], t[s]), whose projected boxes of the
+        candidates ``flat[s]`` (flat indices) best fit their masks' boxes (:func:`fit_boxes_many`)."""
+        if not flat:
+            return []
+        idx = np.zeros((len(flat), max(len(f) for f in flat)), np.int64)
+        valid = np.zeros(idx.shape, bool)
+        for s, f in enumerate(flat):
+            idx[s, : len(f)], valid[s, : len(f)] = f, True
+        R_fit, t_fit, ok = fit_boxes_many(
+            self.E[idx], self.box[idx], valid, self.K, self.size, R, t, self.cfg.box_scale
+        )
+        return [(R_fit[s], t_fit[s]) if ok[s] else None for s in range(len(flat))]
+
+    def flat_indices(self, assignment: dict[int, int]) -> np.ndarray:
+        """The flat candidate indices of an assignment (object -> landmark row)."""
+        return np.array([self.pair[q, row] for q, row in assignment.items()])
 
     def overlaps(self, R: np.ndarray, t: np.ndarray, chunk: int = 64) -> np.ndarray:
         """(H, M) IoU of each candidate's projected box with its mask's box at each pose (R, t world to
@@ -393,30 +412,58 @@ def fit_boxes(
     iterations: int = 20,
 ) -> tuple[np.ndarray, np.ndarray] | None:
     """The pose (R, t world to camera, started there) whose projected boxes of ``extremes`` (n, E, 3) best
-    fit ``boxes`` (n, 4) [x0, y0, x1, y1] in an image of ``size`` (w, h): Huber (``scale`` pixels) on the
-    edge offsets, by damped Gauss-Newton on a left perturbation of the pose. An edge is the projection
-    of one extreme point (the arg-min or arg-max), so its Jacobian is the usual point-projection one.
-    A box side on the image border only bounds (the mask is cut there; the object may go on). None if
-    it diverges. Hand-written: ``scipy.optimize.least_squares`` with finite differences is several times
-    slower per fit, and the verification fits tens of poses per query."""
+    fit ``boxes`` (n, 4) [x0, y0, x1, y1] in an image of ``size`` (w, h); None if the fit diverges. One
+    start of :func:`fit_boxes_many`."""
+    R_fit, t_fit, ok = fit_boxes_many(
+        extremes[None], boxes[None], np.ones((1, len(boxes)), bool), K, size, R[None], t[None], scale, iterations
+    )
+    return (R_fit[0], t_fit[0]) if ok[0] else None
+
+
+def fit_boxes_many(
+    extremes: np.ndarray,
+    boxes: np.ndarray,
+    valid: np.ndarray,
+    K: np.ndarray,
+    size: tuple[int, int],
+    R: np.ndarray,
+    t: np.ndarray,
+    scale: float,
+    iterations: int = 20,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Box fits of S starts at once: for each start s, the pose (R[s], t[s] world to camera, started there)
+    whose projected boxes of ``extremes[s]`` (n, E, 3) best fit ``boxes[s]`` (n, 4) [x0, y0, x1, y1] in an
+    image of ``size`` (w, h); ``valid[s]`` (n,) marks the real boxes of a start padded to n. Huber
+    (``scale`` pixels) on the edge offsets, by damped Gauss-Newton on a left perturbation of the pose, with
+    each start's own damping and stopping. An edge is the projection of one extreme point (the arg-min or
+    arg-max), so its Jacobian is the usual point-projection one. A box side on the image border only
+    bounds (the mask is cut there; the object may go on). Returns (R (S, 3, 3), t (S, 3), ok (S,)), ok
+    false where a fit diverged.
+
+    Hand-written: ``scipy.optimize.least_squares`` with finite differences is several times slower per
+    fit. Batched: the verification fits a hundred poses per query, each on a dozen box sides, so a loop
+    over the fits cost Python overhead, not arithmetic."""
     w, h = size
+    S, n = boxes.shape[:2]
     f, c = K[[0, 1], [0, 1]], K[:2, 2]
-    bound = np.concatenate([boxes[:, :2] <= 0, boxes[:, 2:] >= (w, h)], axis=1)  # (n, 4) one-sided sides
+    bound = np.concatenate([boxes[..., :2] <= 0, boxes[..., 2:] >= (w, h)], axis=-1)  # (S, n, 4) one-sided sides
     sign = np.array([1.0, 1.0, -1.0, -1.0])  # a bound side is violated when (edge - border) * sign > 0
-    rows = np.arange(len(boxes))[:, None]
     axis = np.array([0, 1, 0, 1])  # the image axis of each side: x0, y0, x1, y1
     x_side, y_side = axis == 0, axis == 1
     fa = f[axis]
+    padded = ~np.asarray(valid, bool)[..., None]
 
-    def linearise(R: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        Xc = extremes @ R.T + t  # (n, E, 3)
+    def linearise(R: np.ndarray, t: np.ndarray, live: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Residuals (L, 4n) and Jacobians (L, 4n, 6) of the starts ``live`` at poses (R, t)."""
+        Xc = extremes[live] @ np.swapaxes(R, 1, 2)[:, None] + t[:, None, None, :]  # (L, n, E, 3)
         z = np.maximum(Xc[..., 2], 0.05)
         uv = f * Xc[..., :2] / z[..., None] + c
-        pick = np.concatenate([uv.argmin(1), uv.argmax(1)], axis=1)  # (n, 4): x0, y0, x1, y1's extreme point
-        P = Xc[rows, pick]  # (n, 4, 3): the point defining each edge
+        pick = np.concatenate([uv.argmin(2), uv.argmax(2)], axis=-1)  # (L, n, 4): x0, y0, x1, y1's extreme point
+        at = (np.arange(len(live))[:, None, None], np.arange(n)[None, :, None], pick)
+        P = Xc[at]  # (L, n, 4, 3): the point defining each edge
         zp = np.maximum(P[..., 2], 0.05)
-        r = uv[rows, pick, axis] - boxes
-        inactive = bound & (r * sign <= 0)
+        r = uv[(*at, axis)] - boxes[live]
+        inactive = (bound[live] & (r * sign <= 0)) | padded[live]
         r = np.where(inactive, 0.0, r)
         # d edge / d P: f_a / z on the edge's axis, -f_a P_a / z^2 on depth
         along = fa / zp
@@ -424,39 +471,69 @@ def fit_boxes(
         d1 = np.where(y_side, along, 0.0)
         d2 = -fa * np.where(x_side, P[..., 0], P[..., 1]) / zp**2
         # left perturbation: dP/domega = -[P]_x, dP/dtau = I; P x dP written out (np.cross's own
-        # arithmetic, without its axis shuffling, which took half of this function)
+        # arithmetic, without its axis shuffling)
         p0, p1, p2 = P[..., 0], P[..., 1], P[..., 2]
         J = np.stack([p1 * d2 - p2 * d1, p2 * d0 - p0 * d2, p0 * d1 - p1 * d0, d0, d1, d2], axis=-1)
-        J = np.where(inactive[..., None], 0.0, J)  # (n, 4, 6): d edge / d (omega, tau)
-        return r.ravel(), J.reshape(-1, 6)
+        J = np.where(inactive[..., None], 0.0, J)  # (L, n, 4, 6): d edge / d (omega, tau)
+        return r.reshape(len(live), -1), J.reshape(len(live), -1, 6)
 
-    def huber(r: np.ndarray) -> float:
+    def huber(r: np.ndarray) -> np.ndarray:
         a = np.abs(r)
-        return float(np.where(a <= scale, 0.5 * a**2, scale * (a - 0.5 * scale)).sum())
+        return np.where(a <= scale, 0.5 * a**2, scale * (a - 0.5 * scale)).sum(-1)
 
-    r, J = linearise(R, t)
-    cost, damping = huber(r), 1e-3
+    R, t = np.array(R, np.float64), np.array(t, np.float64)
+    r, J = linearise(R, t, np.arange(S))
+    cost, damping = huber(r), np.full(S, 1e-3)
+    ok, running = np.ones(S, bool), np.ones(S, bool)
     for _ in range(iterations):
-        wts = np.minimum(1.0, scale / np.maximum(np.abs(r), 1e-12))  # IRLS weights of the Huber loss
-        H = J.T @ (wts[:, None] * J)
-        g = J.T @ (wts * r)
-        try:
-            step = -np.linalg.solve(H + damping * np.diag(np.diag(H) + 1e-9), g)
-        except np.linalg.LinAlgError:
-            return None
-        dR = Rotation.from_rotvec(step[:3]).as_matrix()
-        R_new, t_new = dR @ R, dR @ t + step[3:]
-        r_new, J_new = linearise(R_new, t_new)
+        live = np.flatnonzero(running)
+        if not len(live):
+            break
+        wts = np.minimum(1.0, scale / np.maximum(np.abs(r[live]), 1e-12))  # IRLS weights of the Huber loss
+        Jl = J[live]
+        H = np.swapaxes(Jl, 1, 2) @ (wts[..., None] * Jl)
+        g = (np.swapaxes(Jl, 1, 2) @ (wts * r[live])[..., None])[..., 0]
+        diag = np.diagonal(H, axis1=1, axis2=2) + 1e-9
+        damped = H + damping[live, None, None] * (np.eye(6) * diag[:, None, :])
+        step, solved = _solve_each(damped, g)
+        ok[live[~solved]] = running[live[~solved]] = False
+        live, step = live[solved], step[solved]
+        if not len(live):
+            continue
+        dR = Rotation.from_rotvec(step[:, :3]).as_matrix()
+        R_new, t_new = dR @ R[live], (dR @ t[live, :, None])[..., 0] + step[:, 3:]
+        r_new, J_new = linearise(R_new, t_new, live)
         cost_new = huber(r_new)
-        if cost_new < cost:
-            R, t, r, J, cost, damping = R_new, t_new, r_new, J_new, cost_new, max(damping / 10, 1e-7)
-            if np.linalg.norm(step) < 1e-6:
-                break
-        else:
-            damping *= 10
-            if damping > 1e4:
-                break
-    return (R, t) if np.all(np.isfinite(R)) and np.all(np.isfinite(t)) else None
+        better = cost_new < cost[live]
+        up, down = live[better], live[~better]
+        R[up], t[up], r[up], J[up], cost[up] = (
+            R_new[better],
+            t_new[better],
+            r_new[better],
+            J_new[better],
+            cost_new[better],
+        )
+        damping[up] = np.maximum(damping[up] / 10, 1e-7)
+        running[up[np.linalg.norm(step[better], axis=1) < 1e-6]] = False
+        damping[down] *= 10
+        running[down[damping[down] > 1e4]] = False
+    ok &= np.isfinite(R).all((1, 2)) & np.isfinite(t).all(1)
+    return R, t, ok
+
+
+def _solve_each(A: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """-A[i]^-1 b[i] for a stack of systems, and which were solvable (one singular system fails numpy's
+    batched solve: then each is solved alone)."""
+    try:
+        return -np.linalg.solve(A, b[..., None])[..., 0], np.ones(len(A), bool)
+    except np.linalg.LinAlgError:
+        out, solved = np.zeros_like(b), np.ones(len(A), bool)
+        for i in range(len(A)):
+            try:
+                out[i] = -np.linalg.solve(A[i], b[i])
+            except np.linalg.LinAlgError:
+                solved[i] = False
+        return out, solved
 
 
 def draw_triples(
@@ -510,7 +587,8 @@ def _sample_poses(
     _, first = np.unique(np.sort(flat[valid], axis=1), axis=0, return_index=True)
     to_fit = set(valid[np.sort(first)][: table.cfg.fitted_triples].tolist())  # the likeliest distinct triples
     centroids = np.stack([table.centroid[q] for q in usable])
-    rvecs, tvecs = [np.zeros((0, 3))], [np.zeros((0, 3))]
+    poses: list[tuple[np.ndarray, np.ndarray] | int] = []  # (rvec, tvec), or the index of a box fit to come
+    fit_from: list[tuple[int, np.ndarray, np.ndarray]] = []  # (sample, R, t) starts of the box fits
     solved: set[tuple[int, ...]] = set()
     for s in valid:
         if (triple := tuple(flat[s].tolist())) in solved:  # drawn again: the same poses, solved and scored once
@@ -522,24 +600,25 @@ def _sample_poses(
             )
         except cv2.error:
             continue
-        rvecs += [r.reshape(1, 3) for r in rv[:n]]
-        tvecs += [v.reshape(1, 3) for v in tv[:n]]
+        poses += [(r.reshape(1, 3), v.reshape(1, 3)) for r, v in zip(rv[:n], tv[:n])]
         if s in to_fit:
             for r, v in zip(rv[:n], tv[:n]):
-                if not (np.isfinite(r).all() and np.isfinite(v).all()):
-                    continue
-                fit = fit_boxes(
-                    table.E[flat[s]],
-                    table.box[flat[s]],
-                    K,
-                    table.size,
-                    cv2.Rodrigues(r)[0],
-                    v.reshape(3),
-                    table.cfg.box_scale,
-                )
-                if fit is not None:
-                    rvecs.append(cv2.Rodrigues(fit[0])[0].reshape(1, 3))
-                    tvecs.append(fit[1].reshape(1, 3))
+                if np.isfinite(r).all() and np.isfinite(v).all():
+                    poses.append(len(fit_from))
+                    fit_from.append((s, cv2.Rodrigues(r)[0], v.reshape(3)))
+    fits = table.fit_boxes(
+        [flat[s] for s, _, _ in fit_from],
+        np.array([R for _, R, _ in fit_from]).reshape(-1, 3, 3),
+        np.array([t for _, _, t in fit_from]).reshape(-1, 3),
+    )
+    rvecs, tvecs = [np.zeros((0, 3))], [np.zeros((0, 3))]
+    for pose in poses:
+        if isinstance(pose, int):
+            if fits[pose] is None:
+                continue
+            pose = cv2.Rodrigues(fits[pose][0])[0].reshape(1, 3), fits[pose][1].reshape(1, 3)
+        rvecs.append(pose[0])
+        tvecs.append(pose[1])
     rv, tv = np.concatenate(rvecs), np.concatenate(tvecs)
     finite = np.isfinite(rv).all(1) & np.isfinite(tv).all(1)
     return Rotation.from_rotvec(rv[finite]).as_matrix().reshape(-1, 3, 3), tv[finite]

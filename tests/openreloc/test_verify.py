@@ -15,6 +15,7 @@ from openreloc_bench.openreloc.verify import (
     draw_triples,
     extreme_points,
     fit_boxes,
+    fit_boxes_many,
     verify_matches,
 )
 from tests.openreloc.boxworld import Box, render
@@ -126,6 +127,42 @@ def test_fit_boxes_recovers_the_pose_from_exact_boxes(eye: tuple[float, float, f
         assert fit is not None
         t_err, r_err = geometry.pose_errors(T_wc, geometry.invert(geometry.make_pose(*fit)))
         assert t_err < 1e-3 and r_err < 0.01
+
+
+def test_batched_box_fits_equal_one_at_a_time_fits() -> None:
+    """Starts with different box counts, padded into one batch, each with its own damping and stopping,
+    land exactly where their fits one at a time land."""
+    rng = np.random.default_rng(1)
+    w, h = 640, 480
+    Kw = geometry.intrinsics_from_fov(w, h, 60.0)
+    T_cw = geometry.invert(geometry.look_at(np.array([0.3, -3.0, 1.5]), np.array([0.3, 0.5, 0.4])))
+    starts = []
+    for n in (3, 5, 4):
+        corners = [
+            np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)]) * rng.uniform(0.3, 0.8, 3)
+            + rng.uniform([-1.5, -0.5, 0.0], [1.5, 1.5, 0.8])
+            for _ in range(n)
+        ]
+        extremes = np.array([extreme_points(c) for c in corners])
+        uv, _ = geometry.project(Kw, geometry.invert(T_cw), extremes.reshape(-1, 3))
+        uv = uv.reshape(n, -1, 2)
+        boxes = np.clip(np.concatenate([uv.min(1), uv.max(1)], 1), 0, [w, h, w, h]) + rng.normal(0, 2, (n, 4))
+        R0 = Rotation.from_rotvec(rng.normal(0, 0.1, 3)).as_matrix() @ T_cw[:3, :3]
+        starts.append((extremes, boxes, R0, T_cw[:3, 3] + rng.normal(0, 0.3, 3)))
+    E = np.zeros((3, 5, 14, 3))
+    B = np.zeros((3, 5, 4))
+    valid = np.zeros((3, 5), bool)
+    for s, (e, b, _, _) in enumerate(starts):
+        E[s, : len(b)], B[s, : len(b)], valid[s, : len(b)] = e, b, True
+    R, t, ok = fit_boxes_many(
+        E, B, valid, Kw, (w, h), np.stack([s[2] for s in starts]), np.stack([s[3] for s in starts]), scale=10.0
+    )
+    assert ok.all()
+    for s, (e, b, R0, t0) in enumerate(starts):
+        single = fit_boxes(e, b, Kw, (w, h), R0, t0, scale=10.0)
+        assert (
+            single is not None and np.allclose(single[0], R[s], atol=1e-9) and np.allclose(single[1], t[s], atol=1e-9)
+        )
 
 
 def test_gives_up_when_no_candidate_is_right(world: dict) -> None:

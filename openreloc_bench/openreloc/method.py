@@ -58,7 +58,15 @@ from openreloc_bench.openreloc.consistency import (
 from openreloc_bench.openreloc.descriptors import pad_box
 from openreloc_bench.openreloc.explain import PlacedObject, explain_pose
 from openreloc_bench.openreloc.map import ObjectMap
-from openreloc_bench.openreloc.refine import RefineConfig, RefineResult, RefineTarget, orbit_starts, refine_poses
+from openreloc_bench.openreloc.refine import (
+    RefineConfig,
+    RefineResult,
+    RefineTarget,
+    TargetTables,
+    orbit_starts,
+    refine_poses,
+    target_tables,
+)
 from openreloc_bench.openreloc.retrieval import CoarseConfig, place_landmarks, pnp_prior, retrieve_reference
 from openreloc_bench.openreloc.verify import ObjectEvidence, VerifyConfig, extreme_points, verify_matches
 from openreloc_bench.vision.base import (
@@ -319,14 +327,17 @@ class OpenReLoc:
                     hypotheses.append((source, T_alt))
                     match_sets.append(alt_matches)
                 union, target_sets = _union(match_sets)
+                targets = self._targets(union, objects)
+                tables = target_tables(targets, K, rcfg, cfg.seed, occluders)  # shared with the restarts
                 results = refine_poses(
                     [T for _, T in hypotheses],
                     K,
-                    self._targets(union, objects),
+                    targets,
                     rcfg,
                     seed=cfg.seed,
                     occluders=occluders,
                     target_sets=target_sets,
+                    tables=tables,
                 )
             explained = [0.0] * len(results)
             if cfg.consistency.enabled:
@@ -337,7 +348,7 @@ class OpenReLoc:
             res = results[best]
             if refining and rcfg.restart_degrees > 0 and np.isfinite(res.loss):
                 with stage("refine"):
-                    res = self._hop(res, union, target_sets[best], objects, K, occluders, diag)
+                    res = self._hop(res, union, target_sets[best], targets, tables, K, diag)
             if match_sets[best] is not matches:  # a further verification mode won: its matches explain the pose
                 matches = match_sets[best]
                 diag["matches"] = [_match_diag(mt, objects, m) for mt in matches]
@@ -388,14 +399,15 @@ class OpenReLoc:
         res: RefineResult,
         matches: list[Match],
         target_set: list[int],
-        objects: list[QueryObject],
+        targets: list[RefineTarget],
+        tables: TargetTables,
         K: np.ndarray,
-        occluders: np.ndarray,
         diag: dict[str, Any],
     ) -> RefineResult:
         """Basin hopping (``refinement.restart_degrees``): ``res``, the refinement of ``matches[target_set]``,
         refined again from starts orbiting those landmarks' centre; the lowest loss wins. The same
-        ``matches`` as in its batch, so that the same points are subsampled and the losses compare."""
+        ``targets`` (of ``matches``) and ``tables`` as in its batch, so that the same points are subsampled
+        and the losses compare."""
         cfg, m = self.config, self.map
         assert m is not None
         pivot = np.mean([m.landmarks[matches[i].landmark].center for i in target_set], axis=0)
@@ -404,13 +416,7 @@ class OpenReLoc:
             cfg.refinement, max_iterations=min(cfg.refinement.max_iterations, cfg.refinement.restart_iterations)
         )
         hops = refine_poses(
-            starts,
-            K,
-            self._targets(matches, objects),
-            rcfg,
-            seed=cfg.seed,
-            occluders=occluders,
-            target_sets=[target_set] * len(starts),
+            starts, K, targets, rcfg, seed=cfg.seed, target_sets=[target_set] * len(starts), tables=tables
         )
         # over the objects that count in res.loss: a restart that pushes one more object past the outlier
         # factor would otherwise win by dropping it from its own mean

@@ -12,13 +12,11 @@ per object, and the per-object losses averaged over the matched objects. Adam op
 Speed: the forward nearest mask pixel of every image pixel is precomputed once per object with a
 distance transform that also returns the nearest pixel (``cv2.distanceTransformWithLabels``), so a
 step only gathers coordinates (ICP-style: the correspondence is fixed within a step and the residual
-``p - nearest(p)`` is differentiable in ``p``). The backward path's nearest points come from
-batched matmuls (:func:`nearest_points`).
-All objects are padded into one batch so a step is a handful of tensor ops (hypotheses may align
-different match sets: each group of hypotheses with the same set keeps its own optimiser and stopping
-rules, and leaves the batch when it stops), and the gradient is
-written out by the chain rule (``_Problem.gradient``), since autograd's bookkeeping on such small
-ops cost as much as the arithmetic.
+``p - nearest(p)`` is differentiable in ``p``). All objects of all hypotheses are padded into one
+batch (hypotheses may align different match sets: each group of hypotheses with the same set keeps its
+own optimiser and stopping rules, and leaves the batch when it stops), whose losses and gradients one
+compiled pass computes (:func:`.icp_kernel.dual_path`, the chain rule written out): as tensor
+operations, a step's cost was the operations' overhead more than their arithmetic.
 
 Parametrisation: the pose is ``T_wc = T_init @ [R(q) | t]``, with ``q`` (w, x, y, z, normalised in
 the forward pass) and ``t`` expressed in the *initial camera frame*. The rotation then turns the
@@ -34,6 +32,7 @@ pose below the fixed-lr jitter and gives the early-stopping rule (stop after ``l
 from __future__ import annotations
 
 import copy
+import math
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -44,9 +43,7 @@ from scipy.spatial.transform import Rotation
 
 from openreloc_bench import geometry
 from openreloc_bench.config import check_ranges
-
-_BIG = 1e6  # pixel coordinate for padded (absent) points: never the nearest of anything real
-_SLICE_FLOATS = 1 << 18  # 1 MB of float32 scores per slice of the nearest-point search (fits in cache)
+from openreloc_bench.openreloc.icp_kernel import BIG, dual_path
 
 
 @dataclass
@@ -186,13 +183,6 @@ class RefineResult:
     """Why the initial pose was returned instead (divergence), else None."""
 
 
-def huber_sq(sq_dist: torch.Tensor, delta: float) -> torch.Tensor:
-    """Huber kernel applied to *squared* distances (the Ceres convention): s if s <= delta^2, else
-    2*delta*sqrt(s) - delta^2. Quadratic in the distance near zero, linear beyond ``delta`` pixels."""
-    d2 = delta * delta
-    return torch.where(sq_dist <= d2, sq_dist, 2.0 * delta * torch.sqrt(sq_dist.clamp_min(d2)) - d2)
-
-
 def nearest_mask_pixels(mask: np.ndarray) -> np.ndarray:
     """(H, W, 2) float32 (x, y) of the nearest mask pixel for every pixel (itself inside the mask).
 
@@ -210,22 +200,6 @@ def nearest_mask_pixels(mask: np.ndarray) -> np.ndarray:
     table = np.zeros((len(xs) + 1, 2), dtype=np.float32)
     table[1:, 0], table[1:, 1] = xs, ys
     return table[labels]
-
-
-def nearest_points(pix: torch.Tensor, pts: torch.Tensor) -> torch.Tensor:
-    """(K, M) index of the nearest of ``pts`` (K, N, 2) to each of ``pix`` (K, M, 2), per batch row.
-
-    The argmin of ``|p|^2 - 2 x.p``: the squared distance without ``|x|^2``, which is constant along the
-    searched axis. Batched matmuls and no square root, where ``torch.cdist`` also forms both norms and
-    the root; in slices of about a megabyte, so that each score block is searched while it is in cache.
-    The argmin is numpy's, faster than torch's on such blocks."""
-    sq = (pts * pts).sum(-1).unsqueeze(1)
-    step = max(1, _SLICE_FLOATS // max(1, pix.shape[1] * pts.shape[1]))
-    out = np.empty(pix.shape[:2], np.int64)
-    for s in range(0, len(pix), step):
-        score = torch.baddbmm(sq[s : s + step], pix[s : s + step], pts[s : s + step].transpose(1, 2), alpha=-2.0)
-        out[s : s + step] = score.numpy().argmin(axis=2)
-    return torch.from_numpy(out)
 
 
 def backward_pixels(mask: np.ndarray, which: str) -> np.ndarray:
@@ -293,32 +267,100 @@ def resize_mask(mask: np.ndarray, s: float) -> np.ndarray:
 
 @dataclass
 class _Terms:
-    """What one loss evaluation keeps for its gradient (shapes: B hypotheses, O objects, P points, M pixels)."""
+    """What one loss evaluation keeps for its gradient (B hypotheses, O objects)."""
 
     R: torch.Tensor
     """(B, 3, 3) rotations of the local poses."""
-    pc: torch.Tensor
-    """(B, O, P, 3) points in the current camera frame."""
-    front: torch.Tensor
-    """(B, O, P) points in front of the camera."""
-    use: torch.Tensor
-    """(B, O, P) points that count in the forward path."""
-    resid: torch.Tensor
-    """(B, O, P, 2) forward residuals: projection - nearest mask pixel (zero inside the mask)."""
-    fwd_sq: torch.Tensor
-    """(B, O, P) squared forward residuals."""
-    n_use: torch.Tensor
-    """(B, O) forward points counted (at least 1)."""
-    bwd_diff: torch.Tensor
-    """(B * O, M, 2) backward residuals: nearest projected point - mask pixel."""
-    bwd_sq: torch.Tensor
-    """(B, O, M) squared backward residuals."""
-    delta: float
-    """Huber threshold in working-resolution pixels."""
+    g_R: torch.Tensor
+    """(B, O, 3, 3) each object's loss gradient with respect to its hypothesis' rotation matrix."""
+    g_sum: torch.Tensor
+    """(B, O, 3) each object's loss gradient with respect to its points in the current camera, summed."""
+
+
+@dataclass
+class TargetTables:
+    """What the refinement needs of its targets, whatever the starting poses: subsampled points and
+    backward-path pixels, and each target's per-pixel table, at the working resolution. Made once per
+    query (:func:`target_tables`) and passed to every refinement of the same targets."""
+
+    landmark_ids: list[int]
+    pts_w: np.ndarray
+    """(targets, P, 3) float64 subsampled world points, padded."""
+    pts_valid: np.ndarray
+    """(targets, P) which points are real."""
+    pix: np.ndarray
+    """(targets, M, 2) float32 backward-path mask pixels (x, y), padded with -BIG."""
+    pix_valid: np.ndarray
+    """(targets, M) which pixels are real."""
+    pixel_table: np.ndarray
+    """(targets * H * W, 4) float32 per pixel of each target's image: nearest mask pixel (x, y), outside
+    the mask, counted (not hidden by another segment)."""
+    K: np.ndarray
+    """Intrinsics at the working resolution."""
+    height: int
+    width: int
+    scale: float
+    """Working resolution / full resolution."""
+
+
+def target_tables(
+    targets: list[RefineTarget], K: np.ndarray, cfg: RefineConfig, seed: int, occluders: np.ndarray | None
+) -> TargetTables:
+    """The :class:`TargetTables` of ``targets`` (subsampled with ``seed``; ``occluders``: the union of
+    all query segments, used when ``cfg.occlusion_aware``)."""
+    rng = np.random.default_rng(seed)
+    H0, W0 = targets[0].mask.shape
+    s = working_scale(H0, W0, cfg.max_side)
+    masks = [resize_mask(t.mask, s) for t in targets]
+    H, W = masks[0].shape
+    for m, t in zip(masks, targets):
+        if not m.any() and t.mask.any():  # a sliver lost by resampling: keep its centroid pixel
+            ys, xs = np.nonzero(t.mask)
+            m[min(H - 1, int(s * ys.mean())), min(W - 1, int(s * xs.mean()))] = True
+    occ = None if occluders is None or not cfg.occlusion_aware else resize_mask(occluders, s)
+    n_tgt = len(targets)
+    n_pts = max(min(cfg.max_points, len(t.points_w)) for t in targets)
+    edges = [backward_pixels(m, cfg.backward_pixels) for m in masks]
+    n_pix = max(max(1, min(cfg.max_mask_pixels, int(e.sum()))) for e in edges)
+    pts_w = np.zeros((n_tgt, n_pts, 3), np.float64)
+    pts_valid = np.zeros((n_tgt, n_pts), bool)
+    pix = np.full((n_tgt, n_pix, 2), -BIG, np.float32)
+    pix_valid = np.zeros((n_tgt, n_pix), bool)
+    table = np.zeros((n_tgt, H * W, 4), np.float32)
+    table[..., 2:] = 1.0  # outside the mask, counted: until a mask says otherwise
+    for i, (t, m, e) in enumerate(zip(targets, masks, edges)):
+        p = np.asarray(t.points_w, dtype=np.float64)
+        if len(p) > cfg.max_points:
+            p = p[np.sort(rng.choice(len(p), cfg.max_points, replace=False))]
+        pts_w[i, : len(p)] = p
+        pts_valid[i, : len(p)] = True
+        ys, xs = np.nonzero(e)
+        if len(xs) > cfg.max_mask_pixels:
+            keep = np.sort(rng.choice(len(xs), cfg.max_mask_pixels, replace=False))
+            ys, xs = ys[keep], xs[keep]
+        pix[i, : len(xs)] = np.stack([xs, ys], axis=1)
+        pix_valid[i, : len(xs)] = True
+        if m.any():
+            table[i, :, :2] = nearest_mask_pixels(m).reshape(-1, 2)
+            table[i, :, 2] = ~m.reshape(-1)
+        if occ is not None:
+            table[i, :, 3] = ~(occ & ~m).reshape(-1)  # pixels of *another* segment hide what is behind them
+    return TargetTables(
+        [t.landmark_id for t in targets],
+        pts_w,
+        pts_valid,
+        pix,
+        pix_valid,
+        table.reshape(-1, 4),
+        scale_intrinsics(K, s),
+        H,
+        W,
+        s,
+    )
 
 
 class _Problem:
-    """Padded, batched tensors of all objects and hypotheses; evaluates per-object losses at local poses.
+    """Padded, batched arrays of all objects and hypotheses; evaluates per-object losses at local poses.
 
     Each hypothesis aligns its own set of targets: its objects ("slots", padded to the longest set)
     index the targets, and padding (``real`` false) has no points and no pixels, so it adds nothing.
@@ -328,56 +370,11 @@ class _Problem:
     """
 
     def __init__(
-        self,
-        T_inits: list[np.ndarray],
-        K: np.ndarray,
-        targets: list[RefineTarget],
-        cfg: RefineConfig,
-        seed: int,
-        occluders: np.ndarray | None,
-        target_sets: list[list[int]] | None = None,
+        self, T_inits: list[np.ndarray], tables: TargetTables, cfg: RefineConfig, target_sets: list[list[int]]
     ):
-        rng = np.random.default_rng(seed)
-        if target_sets is None:
-            target_sets = [list(range(len(targets)))] * len(T_inits)
-        H0, W0 = targets[0].mask.shape
-        s = working_scale(H0, W0, cfg.max_side)
-        masks = [resize_mask(t.mask, s) for t in targets]
-        H, W = masks[0].shape
-        for m, t in zip(masks, targets):
-            if not m.any() and t.mask.any():  # a sliver lost by resampling: keep its centroid pixel
-                ys, xs = np.nonzero(t.mask)
-                m[min(H - 1, int(s * ys.mean())), min(W - 1, int(s * xs.mean()))] = True
-        self.H, self.W, self.cfg, self.scale = H, W, cfg, s
-        self.unit = s * s  # full-resolution squared pixels -> working squared pixels
-        occ = None if occluders is None or not cfg.occlusion_aware else resize_mask(occluders, s)
-        n_tgt, n_hyp = len(targets), len(T_inits)
-        n_pts = max(min(cfg.max_points, len(t.points_w)) for t in targets)
-        n_pix = max(max(1, min(cfg.max_mask_pixels, int(backward_pixels(m, cfg.backward_pixels).sum()))) for m in masks)
-        pts_w = np.zeros((n_tgt, n_pts, 3), np.float64)
-        pts_valid = np.zeros((n_tgt, n_pts), bool)
-        pix = np.full((n_tgt, n_pix, 2), -_BIG, np.float32)
-        pix_valid = np.zeros((n_tgt, n_pix), bool)
-        nearest = np.zeros((n_tgt, H * W, 2), np.float32)
-        outside = np.ones((n_tgt, H * W), bool)
-        counted = np.ones((n_tgt, H * W), bool)
-        for i, (t, m) in enumerate(zip(targets, masks)):
-            p = np.asarray(t.points_w, dtype=np.float64)
-            if len(p) > cfg.max_points:
-                p = p[np.sort(rng.choice(len(p), cfg.max_points, replace=False))]
-            pts_w[i, : len(p)] = p
-            pts_valid[i, : len(p)] = True
-            ys, xs = np.nonzero(backward_pixels(m, cfg.backward_pixels))
-            if len(xs) > cfg.max_mask_pixels:
-                keep = np.sort(rng.choice(len(xs), cfg.max_mask_pixels, replace=False))
-                ys, xs = ys[keep], xs[keep]
-            pix[i, : len(xs)] = np.stack([xs, ys], axis=1)
-            pix_valid[i, : len(xs)] = True
-            if m.any():
-                nearest[i] = nearest_mask_pixels(m).reshape(-1, 2)
-                outside[i] = ~m.reshape(-1)
-            if occ is not None:
-                counted[i] = ~(occ & ~m).reshape(-1)  # pixels of *another* segment hide what is behind them
+        n_hyp, H, W = len(T_inits), tables.height, tables.width
+        self.H, self.W, self.cfg, self.scale = H, W, cfg, tables.scale
+        self.unit = tables.scale**2  # full-resolution squared pixels -> working squared pixels
         # each hypothesis' objects ("slots", padded to the longest set): which target, and whether real
         n_obj = max(len(ts) for ts in target_sets)
         slots = np.zeros((n_hyp, n_obj), np.int64)
@@ -385,125 +382,77 @@ class _Problem:
         for b, ts in enumerate(target_sets):
             slots[b, : len(ts)], real[b, : len(ts)] = ts, True
         # its objects' points in its initial camera frame: (B, n_obj, n_pts, 3)
+        n_pts = tables.pts_w.shape[1]
         pts_c = np.stack(
             [
-                geometry.transform_points(geometry.invert(T), pts_w[row].reshape(-1, 3)).reshape(n_obj, n_pts, 3)
+                geometry.transform_points(geometry.invert(T), tables.pts_w[row].reshape(-1, 3)).reshape(n_obj, n_pts, 3)
                 for T, row in zip(T_inits, slots)
             ]
         )
         self.slots, self.real = slots, torch.from_numpy(real)
-        self.pts = torch.from_numpy(pts_c.astype(np.float32))
-        self.pts_valid = torch.from_numpy(pts_valid[slots] & real[..., None])
-        self.pix = torch.from_numpy(pix[slots]).reshape(n_hyp * n_obj, n_pix, 2)
-        self.pix_valid = torch.from_numpy(pix_valid[slots] & real[..., None])
-        self.n_pix = self.pix_valid.sum(-1).clamp_min(1)
-        # per pixel of every object's image: nearest mask pixel (x, y), outside the mask, counted; one table
-        # so that a step gathers once (``index_select`` on it: 3x faster than three advanced-indexing lookups)
-        self.pixel_table = torch.from_numpy(
-            np.concatenate([nearest, outside[..., None], counted[..., None]], axis=-1).astype(np.float32)
-        ).reshape(-1, 4)
-        self.offset = torch.from_numpy(slots * (H * W)).unsqueeze(-1)
-        self.K = torch.tensor(scale_intrinsics(K, s), dtype=torch.float32)
+        self.pts = np.ascontiguousarray(pts_c, dtype=np.float32)
+        self.pts_valid = tables.pts_valid[slots] & real[..., None]
+        self.pix = np.ascontiguousarray(tables.pix[slots])
+        self.pix_valid = tables.pix_valid[slots] & real[..., None]
+        self.pixel_table = tables.pixel_table
+        self.offset = slots * (H * W)
+        Kw = tables.K
+        self.camera = np.array([Kw[0, 0], Kw[1, 1], Kw[0, 2], Kw[1, 2]], np.float32)
         self.n_hyp, self.n_obj = n_hyp, n_obj
-        self.nn_idx: torch.Tensor | None = None
+        self.nn_idx = np.zeros(self.pix_valid.shape, np.int64)
 
     def subset(self, rows: list[int]) -> _Problem:
-        """The problem of hypotheses ``rows`` only (the per-pixel tables are shared, not copied), with
+        """The problem of hypotheses ``rows`` only (the per-pixel table is shared, not copied), with
         their current backward correspondences: stopped hypotheses leave the batch instead of costing
         every later step."""
         sub = copy.copy(self)
-        idx = torch.tensor(rows, dtype=torch.long)
-        sub.slots, sub.real = self.slots[rows], self.real[idx]
-        sub.pts, sub.pts_valid = self.pts[idx], self.pts_valid[idx]
-        sub.pix_valid, sub.n_pix, sub.offset = self.pix_valid[idx], self.n_pix[idx], self.offset[idx]
-        per_hyp = (self.n_hyp, self.n_obj)
-        sub.pix = self.pix.view(*per_hyp, *self.pix.shape[1:])[idx].flatten(0, 1)
-        if self.nn_idx is not None:
-            sub.nn_idx = self.nn_idx.reshape(*per_hyp, *self.nn_idx.shape[1:])[idx].flatten(0, 1)
+        sub.slots, sub.real = self.slots[rows], self.real[rows]
+        sub.pts, sub.pts_valid = self.pts[rows], self.pts_valid[rows]
+        sub.pix, sub.pix_valid, sub.offset = self.pix[rows], self.pix_valid[rows], self.offset[rows]
+        sub.nn_idx = self.nn_idx[rows]
         sub.n_hyp = len(rows)
         return sub
 
     def losses(self, q: torch.Tensor, t: torch.Tensor, delta: float, refresh: bool = True) -> torch.Tensor:
         """(B, n_obj) dual-path loss of each object at the local poses (q (B, 4), t (B, 3)), in
         working-resolution squared pixels; ``delta`` in full-resolution pixels. ``refresh=False``
-        keeps the backward path's previous nearest-point correspondences. Differentiable in (q, t)."""
+        keeps the backward path's previous nearest-point correspondences."""
         return self.evaluate(q, t, delta, refresh)[0]
 
     def evaluate(
         self, q: torch.Tensor, t: torch.Tensor, delta: float, refresh: bool = True
     ) -> tuple[torch.Tensor, _Terms]:
-        """:meth:`losses`, plus the intermediate tensors :meth:`gradient` needs."""
-        cfg, K = self.cfg, self.K
-        delta = delta * self.scale
+        """:meth:`losses`, plus each object's gradient, which :meth:`gradient` weights and sums
+        (:func:`.icp_kernel.dual_path`)."""
         R = _quat_to_rotmat(q)  # (B, 3, 3)
-        pc = torch.einsum("bopk,bkj->bopj", self.pts - t[:, None, None, :], R)  # R^T (p - t), row form
-        z = pc[..., 2]
-        front = self.pts_valid & (z > cfg.min_depth)
-        zs = torch.where(front, z, torch.ones_like(z))
-        u = K[0, 0] * pc[..., 0] / zs + K[0, 2]
-        v = K[1, 1] * pc[..., 1] / zs + K[1, 2]
-        uv = torch.stack([u, v], dim=-1)
-        # forward: projected points inside the image -> nearest mask pixel (the mask cannot show
-        # parts outside the image, nor parts hidden behind another segment: those carry no evidence)
-        ui, vi = torch.round(u.detach()).long(), torch.round(v.detach()).long()
-        in_img = front & (ui >= 0) & (ui < self.W) & (vi >= 0) & (vi < self.H)
-        flat = (vi.clamp(0, self.H - 1) * self.W + ui.clamp(0, self.W - 1)) + self.offset
-        looked_up = self.pixel_table.index_select(0, flat.reshape(-1)).view(*flat.shape, 4)
-        use = in_img & (looked_up[..., 3] > 0)
-        resid = (uv - looked_up[..., :2]) * looked_up[..., 2:3]
-        fwd_sq = (resid**2).sum(-1)
-        n_use = use.sum(-1).clamp_min(1)
-        fwd = (huber_sq(fwd_sq, delta) * use).sum(-1) / n_use
-        # backward: mask pixels -> nearest projected point (points behind the camera are absent).
-        # The correspondence is found without gradient, then the distance to it is differentiated:
-        # O(M) backward instead of O(M x N) through a distance matrix.
-        uv_b = torch.where(front.unsqueeze(-1), uv, torch.full_like(uv, _BIG)).reshape(self.n_hyp * self.n_obj, -1, 2)
-        if refresh or self.nn_idx is None:
-            with torch.no_grad():
-                self.nn_idx = nearest_points(self.pix, uv_b.detach()).unsqueeze(-1).expand(-1, -1, 2)
-        bwd_diff = torch.gather(uv_b, 1, self.nn_idx) - self.pix  # nearest projected point - mask pixel
-        bwd_sq = (bwd_diff**2).sum(-1).reshape(self.n_hyp, self.n_obj, -1)
-        bwd = (huber_sq(bwd_sq, delta) * self.pix_valid).sum(-1) / self.n_pix
-        # an object with no point in front of the camera cannot be scored: worst possible loss
-        no_front = front.sum(-1) == 0
-        worst = torch.full_like(fwd, 4.0 * delta * max(self.H, self.W))
-        terms = _Terms(R, pc, front, use, resid, fwd_sq, n_use, bwd_diff, bwd_sq, delta)
-        return torch.where(no_front, worst, fwd + bwd), terms
+        losses, g_R, g_sum = dual_path(
+            R.numpy(),
+            t.detach().numpy(),
+            self.pts,
+            self.pts_valid,
+            self.pixel_table,
+            self.offset,
+            self.pix,
+            self.pix_valid,
+            self.nn_idx,
+            self.camera,
+            self.H,
+            self.W,
+            self.cfg.min_depth,
+            delta * self.scale,
+            refresh,
+        )
+        return torch.from_numpy(losses), _Terms(R, torch.from_numpy(g_R).float(), torch.from_numpy(g_sum).float())
 
     def gradient(
         self, q: torch.Tensor, t: torch.Tensor, terms: _Terms, coef: torch.Tensor
     ) -> tuple[torch.Tensor, torch.Tensor]:
-        """d/d(q, t) of sum_(b, o) coef[b, o] * loss[b, o], by the chain rule through :meth:`evaluate`.
-
-        Written out rather than left to autograd: a step is ~40 small tensor ops on a few thousand
-        points, where autograd's graph bookkeeping costs as much as the arithmetic.
-        ``tests/openreloc/test_refine.py`` checks it against autograd.
-        """
-        R, pc, front, delta = terms.R, terms.pc, terms.front, terms.delta
-        B, n_obj, n_pts = front.shape
-        # d loss / d uv of every point: forward residuals, then backward ones scattered onto their nearest point
-        c_fwd = (coef / terms.n_use).unsqueeze(-1) * terms.use * _huber_slope(terms.fwd_sq, delta)
-        g_uv = 2.0 * c_fwd.unsqueeze(-1) * terms.resid
-        c_bwd = (coef / self.n_pix).unsqueeze(-1) * self.pix_valid * _huber_slope(terms.bwd_sq, delta)
-        g_nn = (2.0 * c_bwd).reshape(B * n_obj, -1, 1) * terms.bwd_diff
-        g_uv = g_uv.reshape(B * n_obj, n_pts, 2).scatter_add(1, self.nn_idx, g_nn).reshape(B, n_obj, n_pts, 2)
-        g_uv = g_uv * front.unsqueeze(-1)  # absent points (behind the camera) carry no gradient
-        # projection u = fx x / z + cx, v = fy y / z + cy
-        K = self.K
-        iz = 1.0 / torch.where(front, pc[..., 2], torch.ones_like(pc[..., 2]))
-        gx, gy = g_uv[..., 0] * K[0, 0] * iz, g_uv[..., 1] * K[1, 1] * iz
-        g_pc = torch.stack([gx, gy, -(gx * pc[..., 0] + gy * pc[..., 1]) * iz], dim=-1).reshape(B, -1, 3)
-        # pc = (p - t) R  ->  dL/dR = (p - t)^T g_pc,  dL/dt = -R sum(g_pc)
-        g_R = torch.bmm((self.pts.reshape(B, -1, 3) - t[:, None, :]).transpose(1, 2), g_pc)
-        g_t = -torch.bmm(R, g_pc.sum(1).unsqueeze(-1)).squeeze(-1)
+        """d/d(q, t) of sum_(b, o) coef[b, o] * loss[b, o], from the objects' gradients of :meth:`evaluate`:
+        pc = (p - t) R gives dL/dt = -R sum(dL/dpc); the rotation's through :func:`_quat_gradient`.
+        ``tests/openreloc/test_refine.py`` checks it against autograd through a torch form of the loss."""
+        g_R = torch.einsum("bo,boij->bij", coef, terms.g_R)
+        g_t = -torch.bmm(terms.R, torch.einsum("bo,boj->bj", coef, terms.g_sum).unsqueeze(-1)).squeeze(-1)
         return _quat_gradient(q, g_R), g_t
-
-
-def _huber_slope(sq_dist: torch.Tensor, delta: float) -> torch.Tensor:
-    """d huber_sq / d sq_dist: 1 in the quadratic zone, delta / distance beyond it."""
-    return torch.where(
-        sq_dist <= delta * delta, torch.ones_like(sq_dist), delta / torch.sqrt(sq_dist.clamp_min(delta * delta))
-    )
 
 
 def _quat_gradient(q: torch.Tensor, g_R: torch.Tensor) -> torch.Tensor:
@@ -526,7 +475,7 @@ def _weights(
     losses = obj_losses.detach()
     # the median (of the real objects) as torch.quantile(0.5) interpolates it, without quantile's
     # per-call overhead; padding sorts last
-    ordered = losses.nan_to_num(_BIG).masked_fill(~real, float("inf")).sort(dim=-1).values
+    ordered = losses.nan_to_num(BIG).masked_fill(~real, float("inf")).sort(dim=-1).values
     n = real.sum(-1, keepdim=True)
     median = 0.5 * (ordered.gather(-1, (n - 1) // 2) + ordered.gather(-1, n // 2))
     limit = torch.clamp(cfg.outlier_factor * median, min=cfg.outlier_min_loss * unit)
@@ -559,6 +508,7 @@ def refine_poses(
     seed: int = 0,
     occluders: np.ndarray | None = None,
     target_sets: list[list[int]] | None = None,
+    tables: TargetTables | None = None,
 ) -> list[RefineResult]:
     """Refine every pose of ``T_inits`` (camera-to-world hypotheses) by minimising the dual-path 2D
     ICP loss over ``targets``, all hypotheses in one batch (each has its own parameters; Adam is
@@ -569,6 +519,9 @@ def refine_poses(
     hypotheses with different matches share one batch. A step has a fixed cost larger than each
     hypothesis adds, so one batch is cheaper than a batch per match set.
     Object losses are keyed by landmark id, so a set may hold each landmark once.
+
+    ``tables``: :func:`target_tables` of the same ``targets``, ``K``, ``seed`` and ``occluders`` (and a
+    config that differs at most in its schedule), where the caller refines them again.
 
     Never raises on numerical trouble: a hypothesis whose loss or pose turns non-finite returns its
     initial pose with a reason.
@@ -581,10 +534,14 @@ def refine_poses(
     T_inits = [geometry.check_pose(T, "initial pose") for T in T_inits]
     if target_sets is not None:
         _check_target_sets(target_sets, targets, len(T_inits))
+    if tables is None:
+        tables = target_tables(targets, K, cfg, seed, occluders)
+    elif tables.landmark_ids != [t.landmark_id for t in targets]:
+        raise ValueError("refine_poses: the tables were made for other targets")
     threads = torch.get_num_threads()
     torch.set_num_threads(1)  # a step is a few small ops: extra threads only add synchronisation overhead
     try:
-        return _optimise(T_inits, K, targets, cfg, seed, occluders, target_sets)
+        return _optimise(T_inits, tables, cfg, target_sets or [list(range(len(targets)))] * len(T_inits))
     finally:
         torch.set_num_threads(threads)
 
@@ -624,6 +581,41 @@ def refine_pose(
     return refine_poses([T_init], K, targets, config, seed, occluders)[0]
 
 
+class _Adam:
+    """Adam on a group's (q, t) with the learning rates halved on plateaus of its summed loss: the
+    arithmetic of ``torch.optim.Adam`` (default betas and eps) and the rule of ``ReduceLROnPlateau``
+    (mode min, relative threshold, no cooldown), written out because their per-call machinery cost a
+    third of a refinement step on these few-element tensors."""
+
+    def __init__(self, params: list[torch.Tensor], lrs: list[float], cfg: RefineConfig):
+        self.params, self.lrs = params, list(lrs)
+        self.avg = [torch.zeros_like(p) for p in params]
+        self.avg_sq = [torch.zeros_like(p) for p in params]
+        self.steps = 0
+        self.patience, self.threshold = cfg.plateau_patience, cfg.plateau_threshold
+        self.best, self.bad_steps, self.reductions = math.inf, 0, 0
+
+    def step(self, grads: list[torch.Tensor]) -> None:
+        self.steps += 1
+        bias1, bias2 = 1.0 - 0.9**self.steps, 1.0 - 0.999**self.steps
+        for p, g, avg, avg_sq, lr in zip(self.params, grads, self.avg, self.avg_sq, self.lrs):
+            avg.lerp_(g, 0.1)
+            avg_sq.mul_(0.999).addcmul_(g, g, value=0.001)
+            p.addcdiv_(avg, (avg_sq.sqrt() / math.sqrt(bias2)).add_(1e-8), value=-lr / bias1)
+
+    def plateau(self, loss: float) -> None:
+        """Count a step without a relative improvement of ``threshold``; after more than ``patience`` of
+        them in a row, halve the learning rates."""
+        if loss < self.best * (1.0 - self.threshold):
+            self.best, self.bad_steps = loss, 0
+        else:
+            self.bad_steps += 1
+        if self.bad_steps > self.patience:
+            self.lrs = [lr * 0.5 for lr in self.lrs]
+            self.reductions += 1
+            self.bad_steps = 0
+
+
 @dataclass
 class _Group:
     """Hypotheses that align the same targets, with their own Adam, learning-rate schedule and stopping
@@ -634,8 +626,7 @@ class _Group:
     """Their rows in the problem (a group's hypotheses are contiguous)."""
     q: torch.Tensor
     t: torch.Tensor
-    opt: torch.optim.Adam
-    sched: torch.optim.lr_scheduler.ReduceLROnPlateau
+    opt: _Adam
     lowest: list[float] = field(default_factory=list)
     """Lowest best loss of its hypotheses, per step (stall rule)."""
     stopped: int = 0
@@ -645,17 +636,12 @@ class _Group:
     def start(cls, rows: slice, cfg: RefineConfig) -> _Group:
         n = rows.stop - rows.start
         q, t = torch.tensor([[1.0, 0.0, 0.0, 0.0]] * n), torch.zeros(n, 3)
-        opt = torch.optim.Adam([{"params": [q], "lr": cfg.lr_rotation}, {"params": [t], "lr": cfg.lr_translation}])
-        sched = torch.optim.lr_scheduler.ReduceLROnPlateau(
-            opt, factor=0.5, patience=cfg.plateau_patience, threshold=cfg.plateau_threshold
-        )
-        return cls(rows, q, t, opt, sched)
+        return cls(rows, q, t, _Adam([q, t], [cfg.lr_rotation, cfg.lr_translation], cfg))
 
 
-def _grouped(target_sets: list[list[int]] | None, n_hyp: int) -> tuple[list[int], list[slice]]:
+def _grouped(target_sets: list[list[int]]) -> tuple[list[int], list[slice]]:
     """Hypotheses reordered so that those with the same target set are contiguous, and each set's rows."""
-    if target_sets is None:
-        return list(range(n_hyp)), [slice(0, n_hyp)]
+    n_hyp = len(target_sets)
     keys = [tuple(ts) for ts in target_sets]
     rank = {k: i for i, k in enumerate(dict.fromkeys(keys))}
     order = sorted(range(n_hyp), key=lambda b: rank[keys[b]])
@@ -664,19 +650,11 @@ def _grouped(target_sets: list[list[int]] | None, n_hyp: int) -> tuple[list[int]
 
 
 def _optimise(
-    T_inits: list[np.ndarray],
-    K: np.ndarray,
-    targets: list[RefineTarget],
-    cfg: RefineConfig,
-    seed: int,
-    occluders: np.ndarray | None,
-    target_sets: list[list[int]] | None,
+    T_inits: list[np.ndarray], tables: TargetTables, cfg: RefineConfig, target_sets: list[list[int]]
 ) -> list[RefineResult]:
-    order, slices = _grouped(target_sets, len(T_inits))
+    order, slices = _grouped(target_sets)
     T_inits = [T_inits[b] for b in order]
-    problem = _Problem(
-        T_inits, K, targets, cfg, seed, occluders, None if target_sets is None else [target_sets[b] for b in order]
-    )
+    problem = _Problem(T_inits, tables, cfg, [target_sets[b] for b in order])
     B, unit = len(T_inits), problem.unit
     groups = [_Group.start(rows, cfg) for rows in slices]
     # state of the live batch (the running groups' hypotheses, in order); a group that stops leaves it
@@ -714,17 +692,12 @@ def _optimise(
         for g in running:
             mine = slice(start, start + g.rows.stop - g.rows.start)
             start = mine.stop
-            g.q.grad, g.t.grad = g_q[mine], g_t[mine]
-            g.opt.step()
+            g.opt.step([g_q[mine], g_t[mine]])
             on = alive[mine]
             if annealed:
-                g.sched.step(float(value[mine][on].sum()) if on.any() else 0.0)
+                g.opt.plateau(float(value[mine][on].sum()) if on.any() else 0.0)
             g.lowest.append(float(best_loss[mine].min()))
-            if (
-                not on.any()
-                or _stalled(g.lowest, cfg, it)
-                or g.opt.param_groups[0]["lr"] < cfg.lr_rotation * 0.5**cfg.lr_reductions * 1.0001
-            ):
+            if not on.any() or _stalled(g.lowest, cfg, it) or g.opt.reductions >= cfg.lr_reductions:
                 g.stopped = it
                 done_q[g.rows], done_t[g.rows] = best_q[mine], best_t[mine]
             else:
@@ -739,14 +712,14 @@ def _optimise(
     iterations = [0] * B
     for g in groups:
         iterations[g.rows] = [g.stopped or it] * (g.rows.stop - g.rows.start)
-    results = _results(problem, T_inits, targets, done_q, done_t, initial, why, iterations)
+    results = _results(problem, T_inits, tables.landmark_ids, done_q, done_t, initial, why, iterations)
     return [results[order.index(b)] for b in range(B)]
 
 
 def _results(
     problem: _Problem,
     T_inits: list[np.ndarray],
-    targets: list[RefineTarget],
+    landmark_ids: list[int],
     best_q: torch.Tensor,
     best_t: torch.Tensor,
     initial: torch.Tensor,
@@ -762,7 +735,7 @@ def _results(
     out = []
     for b, T_init in enumerate(T_inits):
         n = int(problem.real[b].sum())  # real slots come first
-        ids = [targets[i].landmark_id for i in problem.slots[b, :n]]
+        ids = [landmark_ids[i] for i in problem.slots[b, :n]]
         qn = best_q[b].numpy().astype(np.float64)
         tn = best_t[b].numpy().astype(np.float64)
         if why[b] is None and not (

@@ -9,13 +9,12 @@ from scipy import ndimage
 
 from openreloc_bench import geometry
 from openreloc_bench.openreloc import refine
+from openreloc_bench.openreloc.icp_kernel import BIG
 from openreloc_bench.openreloc.refine import (
     RefineConfig,
     RefineTarget,
     backward_pixels,
-    huber_sq,
     nearest_mask_pixels,
-    nearest_points,
     orbit_starts,
     refine_pose,
     refine_poses,
@@ -49,12 +48,6 @@ def targets_at(T_wc: np.ndarray) -> list[RefineTarget]:
     return out
 
 
-def test_huber_is_quadratic_then_linear_in_distance() -> None:
-    d = torch.tensor([0.0, 3.0, 10.0, 20.0])
-    out = huber_sq(d**2, 10.0)
-    assert torch.allclose(out, torch.tensor([0.0, 9.0, 100.0, 2 * 10 * 20 - 100.0]))
-
-
 def test_nearest_mask_pixels_matches_exact_distance_transform() -> None:
     mask = np.zeros((40, 50), bool)
     mask[5:15, 10:30] = True
@@ -66,21 +59,6 @@ def test_nearest_mask_pixels_matches_exact_distance_transform() -> None:
     assert mask[near[..., 1].astype(int), near[..., 0].astype(int)].all()
     assert np.percentile(np.abs(dist - exact), 99) < 1e-6
     assert np.all(near[mask] == np.stack([xs, ys], -1)[mask])
-
-
-@pytest.mark.parametrize(("padded", "slice_floats"), [(0, 1 << 18), (7, 1 << 18), (7, 4500)])
-def test_nearest_points_is_the_exact_nearest_neighbour(padded: int, slice_floats: int, monkeypatch) -> None:
-    """Pixel-scale coordinates plus absent points parked at 1e6 (as the refinement pads them): dropping
-    |x|^2 must not change which point is nearest; nor must searching in slices (4500: two rows each)."""
-    monkeypatch.setattr(refine, "_SLICE_FLOATS", slice_floats)
-    g = torch.Generator().manual_seed(padded)
-    pix = torch.rand(6, 50, 2, generator=g) * 320
-    pts = torch.rand(6, 40, 2, generator=g) * 400 - 40
-    pts[:, 40 - padded :] = 1e6
-    exact = torch.cdist(pix.double(), pts.double()).min(dim=2).values
-    nearest = torch.gather(pts, 1, nearest_points(pix, pts).unsqueeze(-1).expand(-1, -1, 2))
-    found = torch.linalg.vector_norm(nearest - pix, dim=-1)
-    assert torch.allclose(found.double(), exact, atol=1e-3)
 
 
 def test_backward_pixels_boundary_excludes_image_border() -> None:
@@ -239,33 +217,63 @@ def test_huber_annealing_still_converges(delta_start: float) -> None:
 def test_hand_written_gradient_equals_autograd(
     occlusion_aware: bool, refresh: bool, with_outlier: bool, padded: bool
 ) -> None:
-    """The optimiser's chain-rule gradient against autograd through the same loss, at poses where
-    points fall outside masks, outside the image and (for the far start) behind the camera; ``padded``:
-    the hypotheses align target sets of different lengths."""
-    from openreloc_bench.openreloc.refine import _Problem
+    """The compiled loss and its chain-rule gradient against autograd through a torch form of the same
+    loss, at poses where points fall outside masks, outside the image and (for the far start) behind the
+    camera; ``padded``: the hypotheses align target sets of different lengths."""
+    from openreloc_bench.openreloc.refine import _Problem, target_tables
 
     _, _, inst = render(ROOM, K, T_GT, HW)
     targets = targets_at(T_GT)
     starts = [perturbed(0, 0.05, 0.2), perturbed(1, 0.1, 0.5), perturbed(2, 0.3, 2.5)]
     cfg = RefineConfig(occlusion_aware=occlusion_aware)
     n = len(targets)
-    sets = [list(range(n)), list(range(n - 2)), list(range(1, n))] if padded else None
-    problem = _Problem(starts, K, targets, cfg, seed=0, occluders=inst > 0, target_sets=sets)
+    sets = [list(range(n)), list(range(n - 2)), list(range(1, n))] if padded else [list(range(n))] * 3
+    problem = _Problem(starts, target_tables(targets, K, cfg, 0, inst > 0), cfg, sets)
     rng = np.random.default_rng(3)
     q = torch.tensor(np.c_[np.ones(3), rng.normal(0, 0.05, (3, 3))] * [[1.3], [0.8], [1.0]], dtype=torch.float32)
     t = torch.tensor(rng.normal(0, 0.1, (3, 3)), dtype=torch.float32)
     problem.evaluate(q, t, cfg.huber_delta)  # correspondences of this pose
     t_moved = t + 0.02 if not refresh else t  # stale correspondences: held from the previous pose
-    coef = torch.tensor(rng.uniform(0.2, 1.0, (3, len(targets))), dtype=torch.float32)
+    coef = torch.tensor(rng.uniform(0.2, 1.0, (3, problem.n_obj)), dtype=torch.float32)
     if with_outlier:
         coef[:, 0] = 0.0
     obj, terms = problem.evaluate(q, t_moved, cfg.huber_delta, refresh=refresh)
     g_q, g_t = problem.gradient(q, t_moved, terms, coef)
     q_ref, t_ref = q.clone().requires_grad_(True), t_moved.clone().requires_grad_(True)
-    (problem.losses(q_ref, t_ref, cfg.huber_delta, refresh=False) * coef).sum().backward()
+    expected = reference_losses(problem, q_ref, t_ref, cfg.huber_delta)
+    (expected * coef).sum().backward()
     assert torch.isfinite(obj).all() and float(g_t.abs().max()) > 1.0
+    assert torch.allclose(obj, expected.detach(), rtol=1e-4, atol=1e-3)
     assert torch.allclose(g_q, q_ref.grad, rtol=1e-3, atol=1e-2 * float(q_ref.grad.abs().max()))
     assert torch.allclose(g_t, t_ref.grad, rtol=1e-3, atol=1e-2 * float(t_ref.grad.abs().max()))
+
+
+def reference_losses(problem, q: torch.Tensor, t: torch.Tensor, delta: float) -> torch.Tensor:
+    """The dual-path loss of every (hypothesis, object) of ``problem`` as differentiable torch operations,
+    with the backward path's correspondences the compiled pass left in ``problem.nn_idx``."""
+    H, W, d = problem.H, problem.W, delta * problem.scale
+    fx, fy, cx, cy = problem.camera.tolist()
+    pc = torch.einsum("bopk,bkj->bopj", torch.from_numpy(problem.pts) - t[:, None, None, :], refine._quat_to_rotmat(q))
+    front = torch.from_numpy(problem.pts_valid) & (pc[..., 2] > problem.cfg.min_depth)
+    z = torch.where(front, pc[..., 2], torch.ones_like(pc[..., 2]))
+    uv = torch.stack([fx * pc[..., 0] / z + cx, fy * pc[..., 1] / z + cy], dim=-1)
+    ui, vi = torch.round(uv[..., 0].detach()).long(), torch.round(uv[..., 1].detach()).long()
+    inside = front & (ui >= 0) & (ui < W) & (vi >= 0) & (vi < H)
+    flat = vi.clamp(0, H - 1) * W + ui.clamp(0, W - 1) + torch.from_numpy(problem.offset)[..., None]
+    row = torch.from_numpy(problem.pixel_table)[flat]
+    use = inside & (row[..., 3] > 0)
+
+    def huber(sq: torch.Tensor) -> torch.Tensor:
+        return torch.where(sq <= d * d, sq, 2.0 * d * torch.sqrt(sq.clamp_min(d * d)) - d * d)
+
+    fwd = (huber(((uv - row[..., :2]) * row[..., 2:3]).pow(2).sum(-1)) * use).sum(-1) / use.sum(-1).clamp_min(1)
+    absent = torch.full_like(uv, float(BIG))
+    nearest = torch.gather(
+        torch.where(front[..., None], uv, absent), 2, torch.from_numpy(problem.nn_idx)[..., None].expand(-1, -1, -1, 2)
+    )
+    valid = torch.from_numpy(problem.pix_valid)
+    bwd = (huber((nearest - torch.from_numpy(problem.pix)).pow(2).sum(-1)) * valid).sum(-1) / valid.sum(-1).clamp_min(1)
+    return torch.where(front.sum(-1) == 0, torch.full_like(fwd, 4.0 * d * max(H, W)), fwd + bwd)
 
 
 def test_quaternion_rotation_matches_scipy() -> None:

@@ -111,13 +111,20 @@ def _sentence_model(model_id: str) -> Any:
         ) from None
 
 
+@lru_cache(maxsize=4)
+def _embeddings(model_id: str) -> dict[str, np.ndarray]:
+    """The phrases a text model embedded in this process: one memo per model, shared by every tower of it
+    (each map load re-creates its encoder, and its describer re-embeds the same vocabulary)."""
+    return {}
+
+
 class TextTower:
     """Frozen all-MiniLM-L6-v2 with an in-memory cache (describers re-encode the same phrases)."""
 
     def __init__(self, model: str = MINILM_PACKAGE, batch_size: int = 128):
         self.model_id = model
         self.batch_size = batch_size
-        self._cache: dict[str, np.ndarray] = {}
+        self._cache = _embeddings(model)
         self._model: Any = None
         self.dim = 384
 

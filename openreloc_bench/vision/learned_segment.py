@@ -189,12 +189,13 @@ class LearnedSegmenter(Segmenter):
         weights: str | Path | None = None,
         threshold: float | None = None,
         min_area_frac: float = 0.0005,
-        threads: int = 2,
+        threads: int = 1,
     ):
         """``weights``: a directory from ``train-segmenter`` (default: the shipped weights);
         ``threshold``: boundary probability above which a pixel separates regions (default: the one the
         weights' card chose on the validation scenes); ``min_area_frac``: smaller regions are merged into
-        their neighbours (share of the image); ``threads``: torch threads of the network."""
+        their neighbours (share of the image); ``threads``: torch threads of the network (1: the harness runs
+        a query job per core, where two threads each made the network twice as slow; same segments)."""
         self.weights = Path(weights) if weights is not None else DEFAULT_WEIGHTS
         self.net, self.net_cfg, self.card = load_weights(self.weights.resolve())
         self.threshold = float(threshold if threshold is not None else self.card.get("threshold", 0.5))

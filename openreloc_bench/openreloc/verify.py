@@ -12,7 +12,7 @@ centres (the likeliest triples' poses are also fitted to their three mask boxes:
 and scores every pose by how well it explains the objects: the box of a candidate's projected extreme
 points must overlap its mask's box (IoU >= ``min_iou``); the score sums each object's best IoU,
 discounted by the candidate's rank (``rank_weight``). The best-scoring distinct poses are locally
-optimised (LO-RANSAC): the pose is fitted to its inliers' mask boxes (:func:`fit_boxes`), the inliers
+optimised (LO-RANSAC): the pose is fitted to its inliers' mask boxes (:func:`fit_boxes_many`), the inliers
 re-collected, and the poses ranked again by their score after it. The best one's inlier matches
 replace the association's, with the pose added as a coarse hypothesis. ``VerifyConfig.modes`` > 1
 keeps the next distinct consensus sets too; those whose pose renders closest to the query
@@ -90,7 +90,7 @@ class VerifyConfig:
     score bar, which also saves time."""
     fitted_triples: int = 64
     """The first distinct triples drawn (the likeliest: mostly the association's choices) whose P3P poses
-    are also fitted to the triple's three mask boxes (:func:`fit_boxes`) and scored besides: P3P on
+    are also fitted to the triple's three mask boxes (:func:`fit_boxes_many`) and scored besides: P3P on
     mask centroids is biased, and a right triple's raw pose often explains too few masks to be among
     the ``lo_poses`` starts of the local optimisation. Each fit is a small Gauss-Newton solve, so only
     the likeliest triples get one."""
@@ -399,25 +399,6 @@ class _CandidateTable:
             out[q] = row
             used.add(row)
         return out
-
-
-def fit_boxes(
-    extremes: np.ndarray,
-    boxes: np.ndarray,
-    K: np.ndarray,
-    size: tuple[int, int],
-    R: np.ndarray,
-    t: np.ndarray,
-    scale: float,
-    iterations: int = 20,
-) -> tuple[np.ndarray, np.ndarray] | None:
-    """The pose (R, t world to camera, started there) whose projected boxes of ``extremes`` (n, E, 3) best
-    fit ``boxes`` (n, 4) [x0, y0, x1, y1] in an image of ``size`` (w, h); None if the fit diverges. One
-    start of :func:`fit_boxes_many`."""
-    R_fit, t_fit, ok = fit_boxes_many(
-        extremes[None], boxes[None], np.ones((1, len(boxes)), bool), K, size, R[None], t[None], scale, iterations
-    )
-    return (R_fit[0], t_fit[0]) if ok[0] else None
 
 
 def fit_boxes_many(

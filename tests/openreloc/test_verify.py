@@ -14,7 +14,6 @@ from openreloc_bench.openreloc.verify import (
     _CandidateTable,
     draw_triples,
     extreme_points,
-    fit_boxes,
     fit_boxes_many,
     verify_matches,
 )
@@ -123,7 +122,7 @@ def test_fit_boxes_recovers_the_pose_from_exact_boxes(eye: tuple[float, float, f
     assert cut == (eye[0] != 0.0)
     for _ in range(10):
         R0 = Rotation.from_rotvec(rng.normal(0, 0.08, 3)).as_matrix() @ T_cw[:3, :3]
-        fit = fit_boxes(extremes, boxes, Kw, (w, h), R0, T_cw[:3, 3] + rng.normal(0, 0.3, 3), scale=10.0)
+        fit = fit_one(extremes, boxes, Kw, (w, h), R0, T_cw[:3, 3] + rng.normal(0, 0.3, 3))
         assert fit is not None
         t_err, r_err = geometry.pose_errors(T_wc, geometry.invert(geometry.make_pose(*fit)))
         assert t_err < 1e-3 and r_err < 0.01
@@ -159,10 +158,18 @@ def test_batched_box_fits_equal_one_at_a_time_fits() -> None:
     )
     assert ok.all()
     for s, (e, b, R0, t0) in enumerate(starts):
-        single = fit_boxes(e, b, Kw, (w, h), R0, t0, scale=10.0)
+        single = fit_one(e, b, Kw, (w, h), R0, t0)
         assert (
             single is not None and np.allclose(single[0], R[s], atol=1e-9) and np.allclose(single[1], t[s], atol=1e-9)
         )
+
+
+def fit_one(extremes, boxes, K, size, R, t):
+    """One start of :func:`fit_boxes_many`, alone in its batch: (R, t), or None where it diverged."""
+    R_fit, t_fit, ok = fit_boxes_many(
+        extremes[None], boxes[None], np.ones((1, len(boxes)), bool), K, size, R[None], t[None], scale=10.0
+    )
+    return (R_fit[0], t_fit[0]) if ok[0] else None
 
 
 def test_gives_up_when_no_candidate_is_right(world: dict) -> None:

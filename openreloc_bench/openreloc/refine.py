@@ -38,7 +38,6 @@ from typing import Literal
 
 import cv2
 import numpy as np
-import torch
 from scipy.spatial.transform import Rotation
 
 from openreloc_bench import geometry
@@ -213,13 +212,12 @@ def backward_pixels(mask: np.ndarray, which: str) -> np.ndarray:
     return contour if contour.any() else mask
 
 
-def _quaternion_forms() -> torch.Tensor:
+def _quaternion_forms() -> np.ndarray:
     """(3, 3, 4, 4) symmetric M with R_ij = q^T M_ij q for a unit quaternion q = (w, x, y, z): the
     homogeneous form of the rotation matrix (e.g. R_00 = w^2 + x^2 - y^2 - z^2, R_01 = 2 (xy - wz))."""
-    M = torch.zeros(3, 3, 4, 4)
-    M[0, 0].diagonal().copy_(torch.tensor([1.0, 1.0, -1.0, -1.0]))
-    M[1, 1].diagonal().copy_(torch.tensor([1.0, -1.0, 1.0, -1.0]))
-    M[2, 2].diagonal().copy_(torch.tensor([1.0, -1.0, -1.0, 1.0]))
+    M = np.zeros((3, 3, 4, 4), np.float32)
+    for i, diagonal in enumerate(([1.0, 1.0, -1.0, -1.0], [1.0, -1.0, 1.0, -1.0], [1.0, -1.0, -1.0, 1.0])):
+        M[i, i][np.diag_indices(4)] = diagonal
     w, x, y, z = range(4)
     for (i, j), (a, b), (c, d), sign in [
         ((0, 1), (x, y), (w, z), -1.0),
@@ -237,10 +235,10 @@ def _quaternion_forms() -> torch.Tensor:
 _QUAT_FORMS = _quaternion_forms()
 
 
-def _quat_to_rotmat(q: torch.Tensor) -> torch.Tensor:
-    """(B, 4) quaternions (w, x, y, z; normalised here) -> (B, 3, 3) rotation matrices."""
-    qn = q / q.norm(dim=-1, keepdim=True)
-    return torch.einsum("bk,ijkl,bl->bij", qn, _QUAT_FORMS, qn)
+def _quat_to_rotmat(q: np.ndarray) -> np.ndarray:
+    """(B, 4) float32 quaternions (w, x, y, z; normalised here) -> (B, 3, 3) rotation matrices."""
+    qn = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    return np.einsum("bk,ijkl,bl->bij", qn, _QUAT_FORMS, qn)
 
 
 def working_scale(height: int, width: int, max_side: int) -> float:
@@ -269,11 +267,11 @@ def resize_mask(mask: np.ndarray, s: float) -> np.ndarray:
 class _Terms:
     """What one loss evaluation keeps for its gradient (B hypotheses, O objects)."""
 
-    R: torch.Tensor
+    R: np.ndarray
     """(B, 3, 3) rotations of the local poses."""
-    g_R: torch.Tensor
+    g_R: np.ndarray
     """(B, O, 3, 3) each object's loss gradient with respect to its hypothesis' rotation matrix."""
-    g_sum: torch.Tensor
+    g_sum: np.ndarray
     """(B, O, 3) each object's loss gradient with respect to its points in the current camera, summed."""
 
 
@@ -389,7 +387,7 @@ class _Problem:
                 for T, row in zip(T_inits, slots)
             ]
         )
-        self.slots, self.real = slots, torch.from_numpy(real)
+        self.slots, self.real = slots, real
         self.pts = np.ascontiguousarray(pts_c, dtype=np.float32)
         self.pts_valid = tables.pts_valid[slots] & real[..., None]
         self.pix = np.ascontiguousarray(tables.pix[slots])
@@ -413,21 +411,19 @@ class _Problem:
         sub.n_hyp = len(rows)
         return sub
 
-    def losses(self, q: torch.Tensor, t: torch.Tensor, delta: float, refresh: bool = True) -> torch.Tensor:
+    def losses(self, q: np.ndarray, t: np.ndarray, delta: float, refresh: bool = True) -> np.ndarray:
         """(B, n_obj) dual-path loss of each object at the local poses (q (B, 4), t (B, 3)), in
         working-resolution squared pixels; ``delta`` in full-resolution pixels. ``refresh=False``
         keeps the backward path's previous nearest-point correspondences."""
         return self.evaluate(q, t, delta, refresh)[0]
 
-    def evaluate(
-        self, q: torch.Tensor, t: torch.Tensor, delta: float, refresh: bool = True
-    ) -> tuple[torch.Tensor, _Terms]:
+    def evaluate(self, q: np.ndarray, t: np.ndarray, delta: float, refresh: bool = True) -> tuple[np.ndarray, _Terms]:
         """:meth:`losses`, plus each object's gradient, which :meth:`gradient` weights and sums
         (:func:`.icp_kernel.dual_path`)."""
         R = _quat_to_rotmat(q)  # (B, 3, 3)
         losses, g_R, g_sum = dual_path(
-            R.numpy(),
-            t.detach().numpy(),
+            R,
+            t,
             self.pts,
             self.pts_valid,
             self.pixel_table,
@@ -442,44 +438,38 @@ class _Problem:
             delta * self.scale,
             refresh,
         )
-        return torch.from_numpy(losses), _Terms(R, torch.from_numpy(g_R).float(), torch.from_numpy(g_sum).float())
+        return losses, _Terms(R, g_R.astype(np.float32), g_sum.astype(np.float32))
 
-    def gradient(
-        self, q: torch.Tensor, t: torch.Tensor, terms: _Terms, coef: torch.Tensor
-    ) -> tuple[torch.Tensor, torch.Tensor]:
+    def gradient(self, q: np.ndarray, t: np.ndarray, terms: _Terms, coef: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """d/d(q, t) of sum_(b, o) coef[b, o] * loss[b, o], from the objects' gradients of :meth:`evaluate`:
         pc = (p - t) R gives dL/dt = -R sum(dL/dpc); the rotation's through :func:`_quat_gradient`.
         ``tests/openreloc/test_refine.py`` checks it against autograd through a torch form of the loss."""
-        g_R = torch.einsum("bo,boij->bij", coef, terms.g_R)
-        g_t = -torch.bmm(terms.R, torch.einsum("bo,boj->bj", coef, terms.g_sum).unsqueeze(-1)).squeeze(-1)
+        g_R = np.einsum("bo,boij->bij", coef, terms.g_R)
+        g_t = -(terms.R @ np.einsum("bo,boj->bj", coef, terms.g_sum)[..., None])[..., 0]
         return _quat_gradient(q, g_R), g_t
 
 
-def _quat_gradient(q: torch.Tensor, g_R: torch.Tensor) -> torch.Tensor:
+def _quat_gradient(q: np.ndarray, g_R: np.ndarray) -> np.ndarray:
     """(B, 4) gradient w.r.t. the unnormalised quaternion ``q`` given (B, 3, 3) d loss / d R of
     :func:`_quat_to_rotmat`: d R_ij / d q_unit = 2 M_ij q_unit, then the normalisation's projection."""
-    norm = q.norm(dim=-1, keepdim=True)
+    norm = np.linalg.norm(q, axis=-1, keepdims=True)
     qn = q / norm
-    g = 2.0 * torch.einsum("bij,ijkl,bl->bk", g_R, _QUAT_FORMS, qn)
-    return (g - qn * (qn * g).sum(-1, keepdim=True)) / norm
+    g = 2.0 * np.einsum("bij,ijkl,bl->bk", g_R, _QUAT_FORMS, qn)
+    return (g - qn * (qn * g).sum(-1, keepdims=True)) / norm
 
 
-def _weights(
-    obj_losses: torch.Tensor, real: torch.Tensor, cfg: RefineConfig, active: bool, unit: float
-) -> torch.Tensor:
+def _weights(obj_losses: np.ndarray, real: np.ndarray, cfg: RefineConfig, active: bool, unit: float) -> np.ndarray:
     """(B, n_obj): 1 for objects within ``outlier_factor`` x their hypothesis' median loss (or below
     ``outlier_min_loss``), 0 for outliers (moved objects) and padding (``real`` false); while masking
     is not ``active``, 1 for every real object."""
     if not active:
-        return real.float()
-    losses = obj_losses.detach()
-    # the median (of the real objects) as torch.quantile(0.5) interpolates it, without quantile's
-    # per-call overhead; padding sorts last
-    ordered = losses.nan_to_num(BIG).masked_fill(~real, float("inf")).sort(dim=-1).values
-    n = real.sum(-1, keepdim=True)
-    median = 0.5 * (ordered.gather(-1, (n - 1) // 2) + ordered.gather(-1, n // 2))
-    limit = torch.clamp(cfg.outlier_factor * median, min=cfg.outlier_min_loss * unit)
-    return ((losses <= limit) & real).float()
+        return real.astype(np.float32)
+    # the median of the real objects (padding sorts last), interpolated between the middle two
+    ordered = np.sort(np.where(real, np.nan_to_num(obj_losses, nan=BIG), np.float32(np.inf)), axis=-1)
+    n = real.sum(-1, keepdims=True)
+    median = 0.5 * (np.take_along_axis(ordered, (n - 1) // 2, -1) + np.take_along_axis(ordered, n // 2, -1))
+    limit = np.maximum(cfg.outlier_factor * median, np.float32(cfg.outlier_min_loss * unit))
+    return ((obj_losses <= limit) & real).astype(np.float32)
 
 
 def _stalled(lowest: list[float], cfg: RefineConfig, it: int) -> bool:
@@ -538,12 +528,7 @@ def refine_poses(
         tables = target_tables(targets, K, cfg, seed, occluders)
     elif tables.landmark_ids != [t.landmark_id for t in targets]:
         raise ValueError("refine_poses: the tables were made for other targets")
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)  # a step is a few small ops: extra threads only add synchronisation overhead
-    try:
-        return _optimise(T_inits, tables, cfg, target_sets or [list(range(len(targets)))] * len(T_inits))
-    finally:
-        torch.set_num_threads(threads)
+    return _optimise(T_inits, tables, cfg, target_sets or [list(range(len(targets)))] * len(T_inits))
 
 
 def _check_target_sets(target_sets: list[list[int]], targets: list[RefineTarget], n_hyp: int) -> None:
@@ -587,21 +572,23 @@ class _Adam:
     (mode min, relative threshold, no cooldown), written out because their per-call machinery cost a
     third of a refinement step on these few-element tensors."""
 
-    def __init__(self, params: list[torch.Tensor], lrs: list[float], cfg: RefineConfig):
+    def __init__(self, params: list[np.ndarray], lrs: list[float], cfg: RefineConfig):
         self.params, self.lrs = params, list(lrs)
-        self.avg = [torch.zeros_like(p) for p in params]
-        self.avg_sq = [torch.zeros_like(p) for p in params]
+        self.avg = [np.zeros_like(p) for p in params]
+        self.avg_sq = [np.zeros_like(p) for p in params]
         self.steps = 0
         self.patience, self.threshold = cfg.plateau_patience, cfg.plateau_threshold
         self.best, self.bad_steps, self.reductions = math.inf, 0, 0
 
-    def step(self, grads: list[torch.Tensor]) -> None:
+    def step(self, grads: list[np.ndarray]) -> None:
+        """One Adam step of the parameters, in place."""
         self.steps += 1
         bias1, bias2 = 1.0 - 0.9**self.steps, 1.0 - 0.999**self.steps
         for p, g, avg, avg_sq, lr in zip(self.params, grads, self.avg, self.avg_sq, self.lrs):
-            avg.lerp_(g, 0.1)
-            avg_sq.mul_(0.999).addcmul_(g, g, value=0.001)
-            p.addcdiv_(avg, (avg_sq.sqrt() / math.sqrt(bias2)).add_(1e-8), value=-lr / bias1)
+            avg += 0.1 * (g - avg)
+            avg_sq *= 0.999
+            avg_sq += 0.001 * g * g
+            p += -lr / bias1 * (avg / (np.sqrt(avg_sq) / math.sqrt(bias2) + 1e-8))
 
     def plateau(self, loss: float) -> None:
         """Count a step without a relative improvement of ``threshold``; after more than ``patience`` of
@@ -624,8 +611,8 @@ class _Group:
 
     rows: slice
     """Their rows in the problem (a group's hypotheses are contiguous)."""
-    q: torch.Tensor
-    t: torch.Tensor
+    q: np.ndarray
+    t: np.ndarray
     opt: _Adam
     lowest: list[float] = field(default_factory=list)
     """Lowest best loss of its hypotheses, per step (stall rule)."""
@@ -635,7 +622,7 @@ class _Group:
     @classmethod
     def start(cls, rows: slice, cfg: RefineConfig) -> _Group:
         n = rows.stop - rows.start
-        q, t = torch.tensor([[1.0, 0.0, 0.0, 0.0]] * n), torch.zeros(n, 3)
+        q, t = np.tile(np.array([1.0, 0.0, 0.0, 0.0], np.float32), (n, 1)), np.zeros((n, 3), np.float32)
         return cls(rows, q, t, _Adam([q, t], [cfg.lr_rotation, cfg.lr_translation], cfg))
 
 
@@ -659,34 +646,34 @@ def _optimise(
     groups = [_Group.start(rows, cfg) for rows in slices]
     # state of the live batch (the running groups' hypotheses, in order); a group that stops leaves it
     live, running, live_rows = problem, groups, list(range(B))
-    best_loss = torch.full((B,), float("inf"))
-    best_q, best_t = torch.cat([g.q for g in groups]), torch.cat([g.t for g in groups])
-    alive = torch.ones(B, dtype=torch.bool)
-    done_q, done_t = best_q.clone(), best_t.clone()  # every hypothesis' best, once its group has stopped
-    initial = torch.full((B,), float("nan"))
+    best_loss = np.full(B, np.inf, np.float32)
+    best_q, best_t = np.concatenate([g.q for g in groups]), np.concatenate([g.t for g in groups])
+    alive = np.ones(B, bool)
+    done_q, done_t = best_q.copy(), best_t.copy()  # every hypothesis' best, once its group has stopped
+    initial = np.full(B, np.nan, np.float32)
     why: list[str | None] = [None] * B
     it = 0
     for it in range(1, cfg.max_iterations + 1):
-        q, t = torch.cat([g.q.detach() for g in running]), torch.cat([g.t.detach() for g in running])
+        q, t = np.concatenate([g.q for g in running]), np.concatenate([g.t for g in running])
         delta = _delta_at(cfg, it)
         obj, terms = live.evaluate(q, t, delta, refresh=(it - 1) % max(1, cfg.correspondence_every) == 0)
         w = _weights(obj, live.real, cfg, it > cfg.outlier_warmup, unit)
-        coef = w / w.sum(-1, keepdim=True).clamp_min(1.0)
+        coef = w / np.maximum(w.sum(-1, keepdims=True), 1.0)
         value = (obj * coef).sum(-1)  # (live rows,)
         if it == 1:
-            initial = value.clone()
-        for k in torch.nonzero(alive & ~torch.isfinite(value)).flatten().tolist():
+            initial = value.copy()
+        for k in np.flatnonzero(alive & ~np.isfinite(value)).tolist():
             alive[k], why[live_rows[k]] = False, "loss became non-finite"
         annealed = it > cfg.anneal_steps or cfg.huber_delta_start <= cfg.huber_delta
         improved = alive & (value < best_loss) if annealed else alive  # best only counts at the final delta
-        best_loss = torch.where(improved, value, best_loss)
-        best_q = torch.where(improved.unsqueeze(-1), q, best_q)
-        best_t = torch.where(improved.unsqueeze(-1), t, best_t)
-        g_q, g_t = live.gradient(q, t, terms, torch.where(alive.unsqueeze(-1), coef, 0.0))
-        for k in torch.nonzero(alive & ~(torch.isfinite(g_q).all(-1) & torch.isfinite(g_t).all(-1))).flatten().tolist():
+        best_loss = np.where(improved, value, best_loss)
+        best_q = np.where(improved[:, None], q, best_q)
+        best_t = np.where(improved[:, None], t, best_t)
+        g_q, g_t = live.gradient(q, t, terms, np.where(alive[:, None], coef, np.float32(0.0)))
+        for k in np.flatnonzero(alive & ~(np.isfinite(g_q).all(-1) & np.isfinite(g_t).all(-1))).tolist():
             alive[k], why[live_rows[k]] = False, "non-finite gradient"
-        g_q = torch.where(alive.unsqueeze(-1), g_q, 0.0)
-        g_t = torch.where(alive.unsqueeze(-1), g_t, 0.0)
+        g_q = np.where(alive[:, None], g_q, np.float32(0.0))
+        g_t = np.where(alive[:, None], g_t, np.float32(0.0))
         keep: list[int] = []  # live rows of the groups that go on
         start = 0
         for g in running:
@@ -720,24 +707,23 @@ def _results(
     problem: _Problem,
     T_inits: list[np.ndarray],
     landmark_ids: list[int],
-    best_q: torch.Tensor,
-    best_t: torch.Tensor,
-    initial: torch.Tensor,
+    best_q: np.ndarray,
+    best_t: np.ndarray,
+    initial: np.ndarray,
     why: list[str | None],
     iterations: list[int],
 ) -> list[RefineResult]:
     """Score the final local poses with the (shared) loss and express them as camera-to-world poses."""
     cfg, unit = problem.cfg, problem.unit
-    with torch.no_grad():
-        obj = problem.losses(best_q, best_t, cfg.huber_delta)
-        w = _weights(obj, problem.real, cfg, True, unit)
-        final = (obj * w).sum(-1) / w.sum(-1).clamp_min(1.0)
+    obj = problem.losses(best_q, best_t, cfg.huber_delta)
+    w = _weights(obj, problem.real, cfg, True, unit)
+    final = (obj * w).sum(-1) / np.maximum(w.sum(-1), 1.0)
     out = []
     for b, T_init in enumerate(T_inits):
         n = int(problem.real[b].sum())  # real slots come first
         ids = [landmark_ids[i] for i in problem.slots[b, :n]]
-        qn = best_q[b].numpy().astype(np.float64)
-        tn = best_t[b].numpy().astype(np.float64)
+        qn = best_q[b].astype(np.float64)
+        tn = best_t[b].astype(np.float64)
         if why[b] is None and not (
             np.all(np.isfinite(qn))
             and np.linalg.norm(qn) > 1e-8

@@ -67,7 +67,8 @@ def _profiler(enabled: bool) -> Any:
 
 
 def _save_profile(profiler: Any, path: Path) -> None:
-    if profiler is not None:
+    """Write the call tree, if anything was profiled (reused maps are not)."""
+    if profiler is not None and profiler.last_session is not None:
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text(profiler.output_text(unicode=False, color=False))
 

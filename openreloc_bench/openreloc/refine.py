@@ -293,8 +293,8 @@ class TargetTables:
     pixel_table: np.ndarray
     """(targets * H * W, 4) float32 per pixel of each target's image: nearest mask pixel (x, y), outside
     the mask, counted (not hidden by another segment)."""
-    K: np.ndarray
-    """Intrinsics at the working resolution."""
+    camera: np.ndarray
+    """float32 (fx, fy, cx, cy) at the working resolution."""
     height: int
     width: int
     scale: float
@@ -343,6 +343,7 @@ def target_tables(
             table[i, :, 2] = ~m.reshape(-1)
         if occ is not None:
             table[i, :, 3] = ~(occ & ~m).reshape(-1)  # pixels of *another* segment hide what is behind them
+    Kw = scale_intrinsics(K, s)
     return TargetTables(
         [t.landmark_id for t in targets],
         pts_w,
@@ -350,7 +351,7 @@ def target_tables(
         pix,
         pix_valid,
         table.reshape(-1, 4),
-        scale_intrinsics(K, s),
+        np.array([Kw[0, 0], Kw[1, 1], Kw[0, 2], Kw[1, 2]], np.float32),
         H,
         W,
         s,
@@ -394,8 +395,7 @@ class _Problem:
         self.pix_valid = tables.pix_valid[slots] & real[..., None]
         self.pixel_table = tables.pixel_table
         self.offset = slots * (H * W)
-        Kw = tables.K
-        self.camera = np.array([Kw[0, 0], Kw[1, 1], Kw[0, 2], Kw[1, 2]], np.float32)
+        self.camera = tables.camera
         self.n_hyp, self.n_obj = n_hyp, n_obj
         self.nn_idx = np.zeros(self.pix_valid.shape, np.int64)
 

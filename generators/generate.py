@@ -19,14 +19,15 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
+from generators.difficulty import measure_difficulty
 from generators.layout import Layout, build_layout
 from generators.render import Renderer, create_renderer
 from generators.spec import GENERATOR_VERSION, SceneSpec, SuiteSpec, spec_hash, spec_record
-from generators.trajectories import mapping_trajectory, sample_queries
+from generators.trajectories import mapping_path, sample_near_queries, sample_queries
 from generators.variants import LIGHT_SPLITS, Lighting, light_variants, sample_displacements
 from openreloc_bench import config, geometry
 from openreloc_bench.data import io, paths
-from openreloc_bench.data.scene import SceneWriter
+from openreloc_bench.data.scene import DATA_VERSION, SceneWriter, frame_id
 from openreloc_bench.errors import ConfigError, DataError
 
 log = logging.getLogger(__name__)
@@ -41,6 +42,7 @@ def scene_info(spec: SceneSpec, layout: Layout, K: np.ndarray, counts: dict[str,
         "spec_hash": spec_hash(spec),
         "spec": spec_record(spec),
         "generator_version": GENERATOR_VERSION,
+        "data_version": DATA_VERSION,
         "intrinsics": {"K": np.round(K, 9).tolist(), "width": spec.width, "height": spec.height, "fov_y": spec.fov_y},
         "footprint": [round(v, 5) for v in layout.footprint],
         "floors": [
@@ -129,8 +131,10 @@ def generate_scene(spec: SceneSpec, out_dir: Path | str, resume: bool = False, p
     renderer = create_renderer(layout, spec.backend, spec.width, spec.height)
     try:
         try:
-            mapping = mapping_trajectory(layout, spec)
+            path, frames = mapping_path(layout, spec)
+            mapping = path[frames]
             queries, qinfo = sample_queries(layout, spec, mapping, renderer)
+            near = sample_near_queries(layout, spec, path, frames, renderer)
         except RuntimeError as e:  # the spec asks for more than its rooms allow: the user's to change
             raise ConfigError(f"scene '{spec.name}': {e}") from None
         displacements = sample_displacements(layout, spec, queries[:, :3, 3])
@@ -138,9 +142,10 @@ def generate_scene(spec: SceneSpec, out_dir: Path | str, resume: bool = False, p
         splits: dict[str, tuple[np.ndarray, Lighting]] = {
             "mapping": (mapping, Lighting()),
             "query": (queries, Lighting()),
+            "query_near": (near, Lighting()),
         }
         splits.update({s: (queries, lights[s]) for s in LIGHT_SPLITS})
-        splits["query_displaced"] = (queries, Lighting())
+        splits["query_displaced"] = (queries, Lighting())  # last: it moves objects for good
         counts = {s: len(p) for s, (p, _) in splits.items()}
         extra = {
             "lighting": {s: asdict(li) for s, (_, li) in splits.items()},
@@ -163,7 +168,24 @@ def generate_scene(spec: SceneSpec, out_dir: Path | str, resume: bool = False, p
             log.info("%s: reused %d finished frames", spec.name, reused)
     finally:
         renderer.close()
+    moved = {d.id for d in displacements}
+    measured = {
+        split: (
+            poses,
+            lighting.level,
+            read_instances(root / split, len(poses)),
+            moved if split == "query_displaced" else set(),
+        )
+        for split, (poses, lighting) in splits.items()
+        if split != "mapping"
+    }
+    writer.write_difficulty(measure_difficulty(mapping, measured, layout.objects()))
     return root
+
+
+def read_instances(split_dir: Path, n: int) -> list[np.ndarray]:
+    """The instance images of a rendered split, in frame order."""
+    return [io.read_instance(split_dir / "instance" / f"{frame_id(i)}.png") for i in range(n)]
 
 
 def generated_spec_hash(root: Path) -> str | None:

@@ -1,10 +1,12 @@
 """Named colours and procedural, tileable material textures for the asset library.
 
 Textures are made from numpy noise only (no image files), so they are redistributable and
-deterministic: the same (material, rgb, seed, size) always gives the same bytes, which keeps a
-generated scene byte-identical across runs. Every pattern is periodic in both image axes (spectral
-noise from an FFT, stripes with an integer number of periods), because renderers repeat a texture
-across a surface and a seam would show up as a false edge for the relocalizer.
+deterministic: the same (material, rgb, seed, size, metres) always gives the same bytes, which keeps a
+generated scene byte-identical across runs. Patterns are defined in metres, so a texture covering a
+whole wall has the same grain as one covering a cup, and never repeats across the wall: an exactly
+periodic surface would let a relocalizer explain its matches with a pose shifted by whole periods,
+which no real room allows. Every texture still tiles without a seam in both image axes (spectral noise
+from an FFT, stripes with a whole number of periods), as a seam would show up as a false edge.
 """
 
 from __future__ import annotations
@@ -63,74 +65,120 @@ COLOURS: dict[str, tuple[float, float, float]] = {
 """Colour name -> sRGB in [0, 1]; the names are the words used in asset descriptions."""
 
 
+DETAIL_M = 0.5
+"""World size (m) of the smallest texture. A part no larger than this gets one texture of this size; a
+larger part gets one texture covering it whole (see :func:`texture_size`), so no surface repeats."""
+
+PX_PER_M = 128
+"""Texture resolution on surfaces up to :data:`MAX_TEXTURE_PX` pixels across."""
+
+MAX_TEXTURE_PX = 1024
+"""Largest texture side; a surface wider than ``MAX_TEXTURE_PX / PX_PER_M`` m gets fewer pixels per metre."""
+
+
+def texture_size(metres: float) -> int:
+    """Pixels across a texture covering ``metres`` (64 for one :data:`DETAIL_M` tile): a multiple of 8, as
+    OpenGL reads RGB rows 4-byte aligned (a 701-pixel row would be read with a skew)."""
+    return int(min(MAX_TEXTURE_PX, 8 * np.ceil(max(metres, DETAIL_M) * PX_PER_M / 8 - 1e-9)))
+
+
 def _spectral_noise(
-    rng: np.random.Generator, size: int, beta: float, stretch: tuple[float, float] = (1.0, 1.0)
+    rng: np.random.Generator,
+    size: int,
+    beta: float,
+    stretch: tuple[float, float] = (1.0, 1.0),
+    metres: float = DETAIL_M,
+    flat_below_m: float = DETAIL_M,
 ) -> np.ndarray:
-    """Tileable noise with a 1/f**beta spectrum, zero mean and unit std.
+    """Tileable noise with a 1/f**beta spectrum (f in cycles per metre), zero mean and unit std.
 
     ``stretch`` scales the (row, column) frequencies: a large row factor damps variation along
-    rows faster, giving streaks that run down the columns (wood fibre, brushed metal).
+    rows faster, giving streaks that run down the columns (wood fibre, brushed metal). The spectrum is
+    flat for wavelengths above ``flat_below_m``: a texture wider than that gets more of the same
+    pattern, not a pattern dominated by its own size.
     """
     white = rng.standard_normal((size, size))
-    fy = np.fft.fftfreq(size)[:, None] * stretch[0]
-    fx = np.fft.rfftfreq(size)[None, :] * stretch[1]
-    f = np.hypot(fx, fy)
-    f[0, 0] = 1.0
+    fy = np.fft.fftfreq(size)[:, None] * (size / metres) * stretch[0]
+    fx = np.fft.rfftfreq(size)[None, :] * (size / metres) * stretch[1]
+    f = np.maximum(np.hypot(fx, fy), min(stretch) / flat_below_m)
     spec = np.fft.rfft2(white) / f**beta
     spec[0, 0] = 0.0
     out = np.fft.irfft2(spec, s=(size, size))
     return (out - out.mean()) / (out.std() + 1e-12)
 
 
-def _luminance(material: str, rng: np.random.Generator, size: int) -> np.ndarray:
+def _cycles(per_tile: float, metres: float) -> int:
+    """Whole periods across a texture of ``metres`` for a pattern with ``per_tile`` periods per
+    :data:`DETAIL_M`: whole, so the texture still tiles without a seam."""
+    return max(1, int(round(per_tile * metres / DETAIL_M)))
+
+
+def _luminance(material: str, rng: np.random.Generator, size: int, metres: float) -> np.ndarray:
     """Per-pixel brightness factor around 1 that carries the material's pattern."""
-    y, x = np.mgrid[0:size, 0:size] / size  # in [0, 1), one period = the whole tile
+    y, x = np.mgrid[0:size, 0:size] / size  # in [0, 1), one period = the whole texture
+
+    def noise(beta: float, stretch: tuple[float, float] = (1.0, 1.0)) -> np.ndarray:
+        return _spectral_noise(rng, size, beta, stretch, metres)
+
     if material == "wood":
-        warp = _spectral_noise(rng, size, 1.6, (0.25, 1.0))
-        rings = np.sin(2 * np.pi * (int(rng.integers(3, 7)) * x + 0.35 * warp))
-        fibre = _spectral_noise(rng, size, 0.9, (6.0, 1.0))
+        warp = noise(1.6, (0.25, 1.0))
+        rings = np.sin(2 * np.pi * (_cycles(int(rng.integers(3, 7)), metres) * x + 0.35 * warp))
+        fibre = noise(0.9, (6.0, 1.0))
         return 1 + 0.13 * np.sign(rings) * np.abs(rings) ** 0.5 + 0.06 * fibre
     if material == "fabric":
         n = max(4, size // 4) // 2 * 2  # even thread count keeps the over/under pattern periodic
         i, j = np.floor(x * n), np.floor(y * n)
         fx, fy = x * n % 1, y * n % 1
         shade = np.where((i + j) % 2 == 0, np.sin(np.pi * fy), np.sin(np.pi * fx))
-        return 0.86 + 0.2 * shade + 0.05 * _spectral_noise(rng, size, 1.2)
+        return 0.86 + 0.2 * shade + 0.05 * noise(1.2)
     if material == "plaster":
-        return 1 + 0.05 * _spectral_noise(rng, size, 1.3) + 0.03 * _spectral_noise(rng, size, 0.3)
+        return 1 + 0.05 * noise(1.3) + 0.03 * noise(0.3)
     if material == "metal":
-        return 1 + 0.08 * _spectral_noise(rng, size, 0.8, (1.0, 12.0)) + 0.03 * _spectral_noise(rng, size, 1.8)
+        return 1 + 0.08 * noise(0.8, (1.0, 12.0)) + 0.03 * noise(1.8)
     if material == "ceramic":
         speckle = (rng.random((size, size)) < 0.004) * -0.15
-        return 1 + 0.02 * _spectral_noise(rng, size, 1.6) + speckle
+        return 1 + 0.02 * noise(1.6) + speckle
     if material == "paper":
-        return 1 + 0.04 * _spectral_noise(rng, size, 0.2) + 0.03 * _spectral_noise(rng, size, 1.5)
+        return 1 + 0.04 * noise(0.2) + 0.03 * noise(1.5)
     if material == "plastic":
-        return 1 + 0.015 * _spectral_noise(rng, size, 1.0)
+        return 1 + 0.015 * noise(1.0)
     if material == "glass":
-        band = np.sin(np.pi * (2 * (x + y) + 0.1 * _spectral_noise(rng, size, 2.0))) ** 8
+        band = np.sin(np.pi * (_cycles(2, metres) * (x + y) + 0.1 * noise(2.0))) ** 8
         return 1.02 + 0.10 * band
     if material == "leather":
-        grain = _spectral_noise(rng, size, 0.7)
-        return 1 - 0.12 * np.exp(-4 * np.abs(grain)) + 0.05 * _spectral_noise(rng, size, 1.6)
+        grain = noise(0.7)
+        return 1 - 0.12 * np.exp(-4 * np.abs(grain)) + 0.05 * noise(1.6)
     if material == "stone":
-        veins = np.abs(np.sin(2 * np.pi * (2 * x + 0.4 * _spectral_noise(rng, size, 1.8))))
-        return 1 + 0.07 * _spectral_noise(rng, size, 1.4) - 0.25 * np.exp(-12 * veins)
+        veins = np.abs(np.sin(2 * np.pi * (_cycles(2, metres) * x + 0.4 * noise(1.8))))
+        return 1 + 0.07 * noise(1.4) - 0.25 * np.exp(-12 * veins)
     if material == "rubber":
-        return 1 + 0.03 * _spectral_noise(rng, size, 0.4)
+        return 1 + 0.03 * noise(0.4)
     if material == "foliage":
-        veins = np.abs(np.sin(2 * np.pi * 4 * (x + 0.5 * y) + 0.5 * _spectral_noise(rng, size, 1.5)))
-        return 0.95 + 0.18 * _spectral_noise(rng, size, 1.1) - 0.12 * np.exp(-10 * veins)
+        c = 2 * _cycles(2, metres)  # even, so the half-rate term along y is whole too
+        veins = np.abs(np.sin(2 * np.pi * c * (x + 0.5 * y) + 0.5 * noise(1.5)))
+        return 0.95 + 0.18 * noise(1.1) - 0.12 * np.exp(-10 * veins)
     if material == "wax":
-        return 1.04 + 0.03 * _spectral_noise(rng, size, 1.8)
+        return 1.04 + 0.03 * noise(1.8)
     raise ConfigError(f"unknown material '{material}' (known: {', '.join(MATERIALS)})")
 
 
-def make_texture(material: str, rgb: tuple[float, float, float], seed: int, size: int = 64) -> np.ndarray:
-    """uint8 (size, size, 3) tileable procedural texture of ``material`` tinted by sRGB ``rgb``.
+def _wear(rng: np.random.Generator, size: int, metres: float) -> np.ndarray:
+    """Brightness factor around 1 that varies over metres (uneven paint, stains, wear): what makes two
+    places on one large surface look different, as they do in real rooms."""
+    broad = _spectral_noise(rng, size, 2.0, metres=metres, flat_below_m=2.0)
+    stains = _spectral_noise(rng, size, 2.5, metres=metres, flat_below_m=1.0)
+    return 1 + 0.06 * broad - 0.12 * np.clip(stains - 1.0, 0.0, 1.0)
 
-    Deterministic in (material, rgb, seed, size). The pattern modulates brightness around the tint;
-    a small additive term keeps the pattern visible on near-black colours.
+
+def make_texture(
+    material: str, rgb: tuple[float, float, float], seed: int, size: int = 64, metres: float = DETAIL_M
+) -> np.ndarray:
+    """uint8 (size, size, 3) tileable procedural texture of ``material`` tinted by sRGB ``rgb``, covering
+    ``metres`` of surface.
+
+    Deterministic in (material, rgb, seed, size, metres). The pattern modulates brightness around the
+    tint; a small additive term keeps the pattern visible on near-black colours. A texture wider than
+    :data:`DETAIL_M` also varies at metre scale (:func:`_wear`).
     """
     if material not in MATERIALS:
         raise ConfigError(f"unknown material '{material}' (known: {', '.join(MATERIALS)})")
@@ -141,7 +189,11 @@ def make_texture(material: str, rgb: tuple[float, float, float], seed: int, size
         raise ConfigError(f"texture seed must be a non-negative integer, got {seed!r}")
     if not isinstance(size, (int, np.integer)) or size < 8:
         raise ConfigError(f"texture size must be an integer >= 8, got {size!r}")
+    if not (isinstance(metres, (int, float)) and np.isfinite(metres) and metres > 0):
+        raise ConfigError(f"texture width must be a positive number of metres, got {metres!r}")
     rng = np.random.default_rng([int(seed), zlib.crc32(material.encode())])
-    lum = _luminance(material, rng, int(size))
+    lum = _luminance(material, rng, int(size), float(metres))
+    if metres > DETAIL_M:
+        lum = lum * _wear(rng, int(size), float(metres))
     img = tint[None, None, :] * lum[..., None] + 0.15 * (lum[..., None] - 1)
     return np.round(np.clip(img, 0.0, 1.0) * 255).astype(np.uint8)

@@ -22,13 +22,14 @@ import struct
 import sys
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
 from generators.asset_library.core import Part
 from generators.layout import DOOR_H, DOOR_W, WALL_T, Layout
-from generators.materials import make_texture
+from generators.materials import DETAIL_M, make_texture, texture_size
 from openreloc_bench import geometry
 from openreloc_bench.data import io
 from openreloc_bench.errors import ConfigError
@@ -40,9 +41,8 @@ import mujoco  # noqa: E402
 log = logging.getLogger(__name__)
 
 MAX_ACTIVE_LIGHTS = 8
-TEXTURE_TILE_M = 0.5
-"""World size of one texture tile (m): textures are mapped in object-frame metres."""
-TEXTURE_PX = 64
+TEXTURE_SCALE = (0.8, 1.25)
+"""Range of the random scale of a procedural part's texture (its pattern's size in the world)."""
 ZNEAR_M = 0.02
 MAX_MATERIALS = 998
 """Most materials MuJoCo's classic renderer accepts per model: ``MjrContext`` fails ("Maximum number of
@@ -120,22 +120,62 @@ def fovy_from_K(K: np.ndarray, width: int, height: int) -> float:
     return float(np.degrees(2 * np.arctan(0.5 * height / K[1, 1])))
 
 
-def triplanar_uv(mesh_vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Unshared vertices, flat normals and box-projected texture coordinates (object-frame metres).
+@dataclass(frozen=True)
+class TextureMapping:
+    """How a procedural part's texture lies on it: a random rotation, scale and offset per part (so no
+    two surfaces line up), over a texture wide enough that the part never shows it twice."""
+
+    rotation: float
+    """In-plane rotation of the pattern (rad)."""
+    scale: float
+    """Size of the pattern in the world relative to its design size."""
+    offset: tuple[float, float]
+    """Texture-coordinate offset in [0, 1)."""
+    metres: float
+    """Width of surface the texture covers at design size (>= :data:`~generators.materials.DETAIL_M`)."""
+
+    @classmethod
+    def of(cls, part: Part) -> TextureMapping:
+        """The part's mapping, a deterministic function of its texture seed and its size."""
+        rng = np.random.default_rng([int(part.texture_seed), 29])
+        rotation = float(rng.uniform(0.0, 2 * np.pi))
+        scale = float(np.exp(rng.uniform(*np.log(TEXTURE_SCALE))))
+        offset = (float(rng.random()), float(rng.random()))
+        extent = np.sort(np.asarray(part.mesh.extents, dtype=np.float64))
+        widest_face = float(np.hypot(extent[-1], extent[-2]))  # any rotation of any face fits in it
+        return cls(rotation, scale, offset, max(DETAIL_M, widest_face / scale))
+
+    @property
+    def size(self) -> int:
+        """Texture side in pixels."""
+        return texture_size(self.metres)
+
+    def uv(self, points: np.ndarray) -> np.ndarray:
+        """(N, 2) texture coordinates of (N, 2) in-plane object-frame metres."""
+        c, s = np.cos(self.rotation), np.sin(self.rotation)
+        rotated = points @ np.array([[c, s], [-s, c]])
+        return rotated / (self.scale * self.metres) + self.offset
+
+
+def triplanar_uv(
+    mesh_vertices: np.ndarray, faces: np.ndarray, mapping: TextureMapping
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Unshared vertices, flat normals and box-projected texture coordinates.
 
     Each face gets its own three vertices so its normal is flat and its texture is projected along its
-    dominant normal axis; coordinates are in object-frame metres, so a moved object keeps its texture.
+    dominant normal axis; coordinates follow object-frame metres through ``mapping``, so a moved object
+    keeps its texture.
     """
     tri = mesh_vertices[faces]  # (F,3,3)
     n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
     dom = np.abs(n).argmax(axis=1)
     axes = np.array([[1, 2], [0, 2], [0, 1]])[dom]  # (F,2) the two in-plane coordinates
-    uv = np.take_along_axis(tri, axes[:, None, :].repeat(3, axis=1), axis=2) / TEXTURE_TILE_M
+    plane = np.take_along_axis(tri, axes[:, None, :].repeat(3, axis=1), axis=2)
     verts = tri.reshape(-1, 3)
     normals = np.repeat(n, 3, axis=0)
     new_faces = np.arange(len(verts), dtype=np.int32).reshape(-1, 3)
-    return verts, normals, uv.reshape(-1, 2), new_faces
+    return verts, normals, mapping.uv(plane.reshape(-1, 2)), new_faces
 
 
 def part_surface(part: Part) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -143,11 +183,12 @@ def part_surface(part: Part) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.nda
     texture image. Coordinates follow MuJoCo's convention (v = 0 at the image's top row).
 
     A procedural part gets flat faces, box-projected coordinates (:func:`triplanar_uv`) and its
-    material's tileable texture; an image-textured part (asset packs) keeps its shared vertices, its
-    smooth vertex normals and its own coordinates and image."""
+    material's tileable texture, as wide as :class:`TextureMapping` says; an image-textured part (asset
+    packs) keeps its shared vertices, its smooth vertex normals and its own coordinates and image."""
     if part.image is None:
-        v, n, uv, f = triplanar_uv(np.asarray(part.mesh.vertices), np.asarray(part.mesh.faces))
-        return v, n, uv, f, make_texture(part.material, part.rgb, part.texture_seed, TEXTURE_PX)
+        mapping = TextureMapping.of(part)
+        v, n, uv, f = triplanar_uv(np.asarray(part.mesh.vertices), np.asarray(part.mesh.faces), mapping)
+        return v, n, uv, f, make_texture(part.material, part.rgb, part.texture_seed, mapping.size, mapping.metres)
     mesh = part.mesh
     return (
         np.asarray(mesh.vertices, dtype=np.float64),
@@ -201,8 +242,10 @@ def _texture_keys(parts: list[Part]) -> Callable[[Part], tuple]:
 
 
 def _appearance(part: Part) -> tuple:
-    """(material, colour) of a part, the colour rounded so float noise never splits a texture."""
-    return (part.material, tuple(round(float(c), 6) for c in part.rgb))
+    """(material, colour, texture width) of a part, the colour rounded so float noise never splits a
+    texture; parts share a texture only within one appearance, so a folded seed never stretches a
+    texture made for a part of another size."""
+    return (part.material, tuple(round(float(c), 6) for c in part.rgb), round(TextureMapping.of(part).metres, 4))
 
 
 def build_mjcf(layout: Layout, max_width: int, max_height: int) -> tuple[str, dict[str, bytes], list[int]]:

@@ -24,11 +24,13 @@ from typing import Literal
 from openreloc_bench import __version__, config
 from openreloc_bench.errors import ConfigError
 
-GENERATOR_VERSION = f"{__version__}+gen2"
+GENERATOR_VERSION = f"{__version__}+gen3"
 """Recorded in scene.json and part of :func:`spec_hash`; bump the suffix whenever output for the same spec
 changes, so cached maps and results of scenes from an older generator are not reused.
 gen2: rooms stay connected (pendant lights and one-cell gaps no longer cut corridors) and queries are
-drawn only from the walkable region the mapping sequence covers."""
+drawn only from the walkable region the mapping sequence covers.
+gen3: benchmark data v2 (:data:`~openreloc_bench.data.scene.DATA_VERSION`): surfaces without exact
+periodicity, the ``query_near`` split, ``difficulty.csv``."""
 
 TRAINING_SEED_MIN = 1_000_000
 """Seeds >= this are reserved for encoder TRAINING scenes (below :data:`VALIDATION_SEED_MIN`); benchmark
@@ -101,7 +103,8 @@ class SceneSpec:
     max_mapping_frames: int = 0
     """Cap on mapping frames (subsampled evenly along the path); 0 = no cap."""
     n_query: int = 50
-    """Query poses (shared by query, query_light1..4 and query_displaced)."""
+    """Query poses (shared by query, query_light1..4 and query_displaced); query_near has as many of its
+    own, along the mapping path."""
     query_min_distance: float = 0.3
     """Every query camera centre is at least this far (m) from every mapping camera centre..."""
     query_min_angle: float = 20.0

@@ -9,7 +9,8 @@ through the doorways on the grid. A frame is emitted every ``mapping_step_m`` of
 Queries: random free-space positions at 0.9-1.9 m with random yaw, varied pitch and a little roll,
 kept only if far enough in position / orientation from every mapping frame (the viewpoint change is
 recorded per query) and if enough non-structural objects are visible (checked by rendering instance
-ids at low resolution).
+ids at low resolution). ``query_near`` poses lie on the mapping path between consecutive frames
+(:func:`sample_near_queries`).
 """
 
 from __future__ import annotations
@@ -33,6 +34,8 @@ CHECK_WIDTH = 160
 """Width of the low-resolution instance render used for the query visibility check."""
 MIN_OBJECT_SHARE = 0.005
 """An object counts as visible when it covers at least this share of the image."""
+NEAR_QUERY_ROUNDS = 4
+"""Most ``query_near`` poses taken from one gap between mapping frames (short paths need several)."""
 
 
 @dataclass
@@ -215,6 +218,13 @@ def _resample(samples: list, spacing: float) -> list:
 
 def mapping_trajectory(layout: Layout, spec: SceneSpec) -> np.ndarray:
     """Mapping poses (N,4,4) through every room of every floor."""
+    path, frames = mapping_path(layout, spec)
+    return path[frames]
+
+
+def mapping_path(layout: Layout, spec: SceneSpec) -> tuple[np.ndarray, np.ndarray]:
+    """The mapping camera's whole path (M,4,4), a pose every quarter grid cell of travel, and the indices
+    (N,) of the poses emitted as mapping frames."""
     rng = np.random.default_rng([spec.seed, 11])
     samples = []  # (xy, room or None for links between rooms, floor), ~GRID_RES apart
     for f in range(len(layout.floor_z)):
@@ -279,10 +289,10 @@ def mapping_trajectory(layout: Layout, spec: SceneSpec) -> np.ndarray:
         turned = geometry.rotation_error(last, poses[i])
         if moved >= spec.mapping_step_m or turned >= spec.mapping_step_deg or floors[i] != floors[keep[-1]]:
             keep.append(i)
-    out = np.array([poses[i] for i in keep])
-    if spec.max_mapping_frames and len(out) > spec.max_mapping_frames:
-        out = out[np.round(np.linspace(0, len(out) - 1, spec.max_mapping_frames)).astype(int)]
-    return out
+    frames = np.array(keep)
+    if spec.max_mapping_frames and len(frames) > spec.max_mapping_frames:
+        frames = frames[np.round(np.linspace(0, len(frames) - 1, spec.max_mapping_frames)).astype(int)]
+    return np.array(poses), frames
 
 
 @dataclass
@@ -301,10 +311,16 @@ class QueryInfo:
     """Non-structural objects covering >= 0.5% of the image."""
 
 
-def visible_objects(instance: np.ndarray, structural_ids: set[int]) -> int:
+def visible_ids(instance: np.ndarray, structural_ids: set[int]) -> set[int]:
+    """Non-structural instances covering at least :data:`MIN_OBJECT_SHARE` of an instance image."""
     ids, counts = np.unique(instance[instance > 0], return_counts=True)
-    share = counts / instance.size
-    return int(sum(1 for i, s in zip(ids, share) if s >= MIN_OBJECT_SHARE and int(i) not in structural_ids))
+    return {
+        int(i) for i, c in zip(ids, counts) if c >= MIN_OBJECT_SHARE * instance.size and int(i) not in structural_ids
+    }
+
+
+def visible_objects(instance: np.ndarray, structural_ids: set[int]) -> int:
+    return len(visible_ids(instance, structural_ids))
 
 
 def sample_queries(
@@ -362,3 +378,38 @@ def sample_queries(
             )
         )
     return np.array(poses).reshape(-1, 4, 4), infos
+
+
+def sample_near_queries(
+    layout: Layout, spec: SceneSpec, path: np.ndarray, frames: np.ndarray, renderer: Renderer
+) -> np.ndarray:
+    """``query_near`` poses: poses of the mapping camera's path between two consecutive mapping frames
+    (30-70% of the way), as when query and mapping frames interleave in one video (the paper's ScanNet
+    protocol). A random pose of the gap is kept if ``query_min_objects`` objects are visible; every gap
+    gives one before any gives two, so queries spread along the path. Deterministic in the seed."""
+    rng = np.random.default_rng([spec.seed, 19])
+    step = np.r_[np.linalg.norm(np.diff(path[:, :3, 3], axis=0), axis=1), np.inf]
+    structural = {i.id for i in layout.instances if i.structural}
+    cw = min(CHECK_WIDTH, spec.width)
+    ch = max(8, int(round(cw * spec.height / spec.width)))
+    K_check = geometry.intrinsics_from_fov(cw, ch, spec.fov_y)
+    chosen: set[int] = set()
+    for _ in range(NEAR_QUERY_ROUNDS):  # each round takes at most one more pose from every gap
+        for k in rng.permutation(len(frames) - 1):
+            a, b = int(frames[k]), int(frames[k + 1])
+            if step[a:b].max() > GRID_RES:  # a jump between floors, not a walk
+                continue
+            window = np.arange(max(a + 1, int(np.ceil(a + 0.3 * (b - a)))), min(b, int(a + 0.7 * (b - a)) + 1))
+            for j in (int(j) for j in rng.permutation(window) if int(j) not in chosen):
+                if (
+                    visible_objects(renderer.render_instances(path[j], K_check, cw, ch), structural)
+                    >= spec.query_min_objects
+                ):
+                    chosen.add(j)
+                    break
+            if len(chosen) == spec.n_query:
+                return path[sorted(chosen)]
+    raise RuntimeError(
+        f"could only place {len(chosen)} of {spec.n_query} query_near poses along the mapping path "
+        "(lower n_query or query_min_objects, or raise max_mapping_frames)"
+    )

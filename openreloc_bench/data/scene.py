@@ -11,6 +11,7 @@
     <scene>/<split>/pose/<i>.txt       4x4 T_wc
     <scene>/<split>/intrinsic/intrinsic_color.txt
     <scene>/query_displaced/displacements.json
+    <scene>/difficulty.csv             per query frame: viewpoint gap, light level, objects in view
 
 Frames are named by six-digit zero-padded ids. The writer writes each file atomically and the
 pose file last, so a frame counts as finished exactly when its pose file exists (resume relies on it).
@@ -24,14 +25,46 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pandas as pd
 
 from openreloc_bench import geometry
 from openreloc_bench.data import io
 from openreloc_bench.data.types import FrameRecord, SceneSequence, check_intrinsics
 from openreloc_bench.errors import DataError
 
-SPLITS = ("mapping", "query", "query_light1", "query_light2", "query_light3", "query_light4", "query_displaced")
+SPLITS = (
+    "mapping",
+    "query",
+    "query_light1",
+    "query_light2",
+    "query_light3",
+    "query_light4",
+    "query_displaced",
+    "query_near",
+)
 QUERY_SPLITS = SPLITS[1:]
+
+DATA_VERSION = 2
+"""Version of the generated benchmark data, recorded in ``scene.json`` as ``data_version``; a reader
+refuses generated scenes of another version rather than mixing them in one result. 1: textures repeated
+exactly every 0.5 m. 2: no surface repeats (each part's texture covers it whole, with a random rotation,
+scale and offset, and metre-scale wear); a ``query_near`` split along the mapping path; ``difficulty.csv``."""
+
+DIFFICULTY_COLUMNS = (
+    "split",
+    "frame",
+    "gap_m",
+    "gap_deg",
+    "light_level",
+    "visible_objects",
+    "object_area",
+    "displaced_in_view",
+    "lookalikes_in_view",
+)
+"""Columns of ``difficulty.csv``: per query frame, the distance (m) to the nearest mapping camera and the
+smallest rotation (deg) to a mapping frame within 1 m, the split's light level (1 = mapping lighting), the non-structural objects covering at
+least 0.5% of the image, the image share all of them cover, how many of the visible ones were moved
+(``query_displaced``) and how many have an identical twin in the scene."""
 STRUCTURAL_CATEGORIES = frozenset(
     {"wall", "floor", "ceiling", "door", "doorway", "window", "stairs", "railing", "baseboard", "column"}
 )
@@ -77,6 +110,12 @@ class ObjectInfo:
         if _finite_array(obj.transform, (4, 4)) is None:
             raise DataError(path, f"object {obj.id}: transform must be a 4x4 matrix of finite numbers")
         return obj
+
+    @property
+    def model(self) -> tuple:
+        """Category, description and attributes: equal for identical copies of one asset (look-alikes
+        that appearance alone cannot tell apart)."""
+        return self.category, self.description, tuple(sorted(self.attributes.items()))
 
     @property
     def aabb_array(self) -> np.ndarray:
@@ -141,6 +180,13 @@ class Scene:
             raise DataError(self.root, "scene directory not found")
         info_path = self.root / "scene.json"
         self.info: dict[str, Any] = check_scene_info(io.read_json(info_path), info_path)
+        version = self.info.get("data_version", 1)
+        if "generator_version" in self.info and version != DATA_VERSION:
+            raise DataError(
+                self.root,
+                f"generated as benchmark data v{version}, this openreloc-bench reads v{DATA_VERSION}: "
+                "regenerate it (`openreloc-bench generate SUITE --out DIR`) into a new folder",
+            )
         objects_path = self.root / "objects.json"
         raw = io.read_json(objects_path) if objects_path.exists() else []
         if not isinstance(raw, list):
@@ -192,6 +238,28 @@ class Scene:
             )
         if "K" in intr and not np.allclose(np.asarray(intr["K"], dtype=float), seq.K, rtol=1e-6, atol=1e-6):
             raise DataError(where / "intrinsic" / "intrinsic_color.txt", "intrinsics differ from scene.json's")
+
+    def difficulty(self) -> pd.DataFrame | None:
+        """``difficulty.csv`` (one row per query frame, :data:`DIFFICULTY_COLUMNS`), or None for a
+        scene without one (imported real data). DataError naming the file where a column is missing, a
+        value is no number or a frame has two rows."""
+        path = self.root / "difficulty.csv"
+        if not path.exists():
+            return None
+        try:
+            table = pd.read_csv(path, dtype={"split": str, "frame": str})
+        except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as e:
+            raise DataError(path, f"not a readable CSV ({str(e).splitlines()[0]})") from None
+        missing = [c for c in DIFFICULTY_COLUMNS if c not in table.columns]
+        if missing:
+            raise DataError(path, f"missing column(s) {', '.join(missing)}")
+        wrong = [c for c in DIFFICULTY_COLUMNS[2:] if not pd.api.types.is_numeric_dtype(table[c])]
+        if wrong:
+            raise DataError(path, f"column '{wrong[0]}' holds a value that is no number")
+        twice = table[table.duplicated(["split", "frame"])]
+        if len(twice):
+            raise DataError(path, f"frame {twice['frame'].iloc[0]} of split '{twice['split'].iloc[0]}' has two rows")
+        return table
 
     def displacements(self) -> list[dict[str, Any]]:
         """The moved objects of ``query_displaced`` (each names an object of ``objects.json``)."""
@@ -290,6 +358,9 @@ class SceneWriter:
                 raise ValueError("instance ids must fit in uint16")
             io.write_png(d / "instance" / f"{fid}.png", instance.astype(np.uint16))
         io.atomic_write_text(d / "pose" / f"{fid}.txt", io.format_matrix(T_wc))
+
+    def write_difficulty(self, table: pd.DataFrame) -> None:
+        io.atomic_write_text(self.root / "difficulty.csv", table.to_csv(index=False))
 
     def write_displacements(self, displacements: list[dict[str, Any]]) -> None:
         io.write_json(self.root / "query_displaced" / "displacements.json", displacements)

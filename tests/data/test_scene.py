@@ -4,10 +4,11 @@ import stat
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from openreloc_bench.data import io
-from openreloc_bench.data.scene import ObjectInfo, Scene, SceneWriter
+from openreloc_bench.data.scene import DATA_VERSION, DIFFICULTY_COLUMNS, ObjectInfo, Scene, SceneWriter
 from openreloc_bench.errors import DataError
 from tests.conftest import write_tiny_scene
 
@@ -190,3 +191,25 @@ def test_displacements_must_name_objects_of_the_scene(tiny_scene: Path) -> None:
     path.write_text(json.dumps([{"id": 7, "aabb_after": [[0, 0, 0], [1, 1, 1]]}]))
     with pytest.raises(DataError, match="displacements.json: expected a list of moved objects"):
         Scene(tiny_scene).displacements()
+
+
+def test_generated_scene_of_another_data_version_is_refused(tiny_scene: Path) -> None:
+    path = tiny_scene / "scene.json"
+    info = json.loads(path.read_text())
+    Scene(tiny_scene)  # no generator version: imported data, read whatever its age
+    path.write_text(json.dumps({**info, "generator_version": "0.1.0+gen2"}))
+    with pytest.raises(DataError, match=rf"benchmark data v1, this openreloc-bench reads v{DATA_VERSION}: regenerate"):
+        Scene(tiny_scene)
+    path.write_text(json.dumps({**info, "generator_version": "0.1.0+gen3", "data_version": DATA_VERSION}))
+    assert Scene(tiny_scene).info["data_version"] == DATA_VERSION
+
+
+def test_difficulty_table_is_read_and_checked(tiny_scene: Path) -> None:
+    assert Scene(tiny_scene).difficulty() is None  # imported data has none
+    row = {"split": "query", "frame": "000000", **{c: 1.0 for c in DIFFICULTY_COLUMNS[2:]}}
+    SceneWriter(tiny_scene).write_difficulty(pd.DataFrame([row]))
+    table = Scene(tiny_scene).difficulty()
+    assert table["frame"].tolist() == ["000000"] and table["gap_m"].tolist() == [1.0]
+    (tiny_scene / "difficulty.csv").write_text("split,frame\nquery,000000\n")
+    with pytest.raises(DataError, match="missing column"):
+        Scene(tiny_scene).difficulty()

@@ -15,9 +15,18 @@ import pytest
 import yaml
 
 from generators.generate import generate_scene, generate_suite
+from generators.layout import build_layout
 from generators.spec import SceneSpec, load_suite, spec_hash
+from generators.trajectories import mapping_path
 from openreloc_bench import config, geometry
-from openreloc_bench.data.scene import SPLITS, STRUCTURAL_CATEGORIES, Scene
+from openreloc_bench.data.scene import (
+    DATA_VERSION,
+    DIFFICULTY_COLUMNS,
+    QUERY_SPLITS,
+    SPLITS,
+    STRUCTURAL_CATEGORIES,
+    Scene,
+)
 from openreloc_bench.errors import DataError
 
 TINY = dict(
@@ -53,9 +62,11 @@ def test_layout_on_disk(tiny: Path) -> None:
     assert scene.info["seed"] == 3 and scene.info["rooms"] and scene.info["floors"]
     q = scene.sequence("query")
     assert len(q) == 4 and len(scene.sequence("mapping")) == 12
-    for split in SPLITS[1:]:
+    assert scene.info["data_version"] == DATA_VERSION
+    for split in QUERY_SPLITS:
         seq = scene.sequence(split)
-        assert np.allclose([r.T_wc for r in seq.records], [r.T_wc for r in q.records])  # same query poses
+        same = np.allclose([r.T_wc for r in seq.records], [r.T_wc for r in q.records])
+        assert same == (split != "query_near")  # the variants share the query poses; query_near has its own
         assert np.allclose(seq.K, geometry.intrinsics_from_fov(96, 72, 60.0))
     assert len(scene.displacements()) == 2
     assert not list(tiny.rglob("*.tmp"))
@@ -99,6 +110,37 @@ def test_query_viewpoints_and_visibility(tiny: Path) -> None:
         if near.any():
             assert geometry.rotation_error(mapping[near], rec.T_wc).min() >= spec.query_min_angle - 1e-6
         assert info["visible_objects"] >= spec.query_min_objects
+
+
+def test_query_near_lies_on_the_mapping_path(tiny: Path) -> None:
+    scene = Scene(tiny)
+    mapping = np.array([r.T_wc for r in scene.sequence("mapping").records])
+    near = np.array([r.T_wc for r in scene.sequence("query_near").records])
+    path, frames = mapping_path(build_layout(SceneSpec(**TINY)), SceneSpec(**TINY))
+    assert np.allclose(mapping, path[frames], atol=1e-6)
+    assert len(near) == TINY["n_query"]
+    assert all(np.abs(path - T).max(axis=(1, 2)).min() < 1e-5 for T in near)  # poses of the camera's path
+
+
+def test_difficulty_measures_every_query_frame(tiny: Path) -> None:
+    scene = Scene(tiny)
+    table = scene.difficulty()
+    assert tuple(table.columns) == DIFFICULTY_COLUMNS
+    for split in QUERY_SPLITS:
+        rows = table[table["split"] == split]
+        seq = scene.sequence(split)
+        assert list(rows["frame"]) == [r.frame_id for r in seq.records]
+        assert (rows["light_level"] == scene.info["lighting"][split]["level"]).all()
+        mapping = np.array([r.T_wc for r in scene.sequence("mapping").records])
+        gaps = [np.linalg.norm(mapping[:, :3, 3] - r.T_wc[:3, 3], axis=1).min() for r in seq.records]
+        assert np.allclose(rows["gap_m"], gaps, atol=1e-3)
+        structural = {i for i, o in scene.objects.items() if o.structural}
+        moved = {d["id"] for d in scene.displacements()} if split == "query_displaced" else set()
+        for (_, row), frame in zip(rows.iterrows(), seq):
+            ids, counts = np.unique(frame.instance, return_counts=True)
+            big = counts >= 0.005 * frame.instance.size
+            visible = {int(i) for i, b in zip(ids, big) if b and i and int(i) not in structural}
+            assert (row["visible_objects"], row["displaced_in_view"]) == (len(visible), len(visible & moved))
 
 
 def test_light_variants_darker_and_displaced_differs(tiny: Path) -> None:

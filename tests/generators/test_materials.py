@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from generators.materials import COLOURS, MATERIALS, make_texture
+from generators.materials import COLOURS, DETAIL_M, MATERIALS, PX_PER_M, make_texture, texture_size
 from openreloc_bench.errors import ConfigError
 
 REQUIRED_MATERIALS = ("wood", "fabric", "plaster", "metal", "ceramic", "paper", "plastic", "glass", "leather", "stone")
@@ -53,6 +53,24 @@ def test_texture_tiles_without_seam(material):
         assert wrap <= 3 * inner + 2.0, (material, axis, wrap, inner)
 
 
+def _shift_correlation(t: np.ndarray, px: int) -> float:
+    a, b = t[:, :-px] - t[:, :-px].mean(), t[:, px:] - t[:, px:].mean()
+    return float((a * b).sum() / np.sqrt((a * a).sum() * (b * b).sum()))
+
+
+@pytest.mark.parametrize("material", MATERIALS)
+def test_wide_texture_does_not_repeat_and_still_tiles(material):
+    """A texture covering 2 m is not its 0.5 m pattern repeated (which correlates 1.0 with itself shifted
+    by 0.5 m), and wraps around without a seam like the small one."""
+    t = make_texture(material, COLOURS["beige"], seed=2, size=texture_size(2.0), metres=2.0).astype(float).mean(axis=2)
+    assert t.shape == (2 * PX_PER_M * 1, 2 * PX_PER_M * 1) and texture_size(DETAIL_M) == 64
+    assert _shift_correlation(t, int(DETAIL_M * PX_PER_M)) < 0.5
+    for axis in (0, 1):
+        inner = np.abs(np.diff(t, axis=axis)).mean()
+        wrap = np.abs(np.take(t, 0, axis=axis) - np.take(t, -1, axis=axis)).mean()
+        assert wrap <= 3 * inner + 2.0, (material, axis, wrap, inner)
+
+
 def test_materials_have_distinct_patterns():
     stds = {m: make_texture(m, COLOURS["grey"], seed=0).astype(float).std() for m in MATERIALS}
     assert stds["plastic"] < stds["wood"] and stds["plastic"] < stds["fabric"] and stds["plastic"] < stds["stone"]
@@ -67,6 +85,8 @@ def test_materials_have_distinct_patterns():
         ({"rgb": (0.1, 0.2)}, "colour"),
         ({"seed": -1}, "seed"),
         ({"size": 2}, "size"),
+        ({"metres": 0.0}, "metres"),
+        ({"metres": float("nan")}, "metres"),
     ],
 )
 def test_bad_texture_arguments_raise_config_error(kwargs, word):

@@ -15,7 +15,15 @@ from openreloc_bench.data import io
 def test_preview_cli(tmp_path: Path) -> None:
     scene = generate_scene(
         SceneSpec(
-            name="p", seed=2, width=64, height=48, objects_per_room=8, max_mapping_frames=6, n_query=2, n_displaced=1
+            name="p",
+            seed=2,
+            width=64,
+            height=48,
+            objects_per_room=8,
+            max_mapping_frames=6,
+            n_query=2,
+            n_displaced=1,
+            query_min_objects=1,  # few of its 8 objects fill 0.5% of a 64x48 frame seen from the mapping path
         ),
         tmp_path,
         progress=False,

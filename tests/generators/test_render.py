@@ -197,3 +197,18 @@ def test_more_colours_than_materials_is_a_clear_error(monkeypatch) -> None:
     monkeypatch.setattr(render, "MAX_MATERIALS", 2)
     with pytest.raises(ConfigError, match="distinct"):
         render.build_mjcf(_many_boxes(12, ("red", "blue")), W, H)
+
+
+def test_texture_mapping_covers_a_part_once_with_its_own_placement() -> None:
+    wall = _part([box_mesh((0, 0, 0), (5.0, 0.1, 2.7))], "plaster", "white", seed=11)
+    v, _, uv, _, image = render.part_surface(wall)
+    mapping = render.TextureMapping.of(wall)
+    assert mapping == render.TextureMapping.of(_part([box_mesh((0, 0, 0), (5.0, 0.1, 2.7))], "plaster", "white", 11))
+    assert image.shape[:2] == (mapping.size, mapping.size) and mapping.metres * mapping.scale >= np.hypot(5.0, 2.7)
+    assert np.all(uv.max(axis=0) - uv.min(axis=0) <= 1.0 + 1e-9)  # the wall never shows its texture twice
+    other = render.TextureMapping.of(_part([box_mesh((0, 0, 0), (5.0, 0.1, 2.7))], "plaster", "white", 12))
+    assert (other.rotation, other.offset) != (mapping.rotation, mapping.offset)  # surfaces do not line up
+    cup = render.TextureMapping.of(_part([box_mesh((0, 0, 0), (0.08, 0.08, 0.1))], "ceramic", "white", 3))
+    assert cup.metres == render.DETAIL_M and cup.size == 64
+    lo, hi = render.TEXTURE_SCALE
+    assert lo <= mapping.scale <= hi and lo <= cup.scale <= hi

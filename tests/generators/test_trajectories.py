@@ -10,7 +10,15 @@ import pytest
 from generators.layout import build_layout
 from generators.render import create_renderer
 from generators.spec import SceneSpec, load_suite
-from generators.trajectories import QUERY_HEIGHT, mapping_trajectory, occupancy_grid, sample_queries, walkable_region
+from generators.trajectories import (
+    QUERY_HEIGHT,
+    mapping_path,
+    mapping_trajectory,
+    occupancy_grid,
+    sample_near_queries,
+    sample_queries,
+    walkable_region,
+)
 from openreloc_bench import geometry
 
 SUITES = Path(__file__).resolve().parents[2] / "scenes"
@@ -97,3 +105,18 @@ def test_queries_change_viewpoint_and_see_objects(scene) -> None:
     assert walkable_region(occ)[occ.cell(poses[:, :2, 3])].all()  # only where the mapping sequence goes
     pitch = np.degrees(np.arcsin(-poses[:, 2, 2]))
     assert pitch.std() > 3  # varied pitch
+
+
+def test_near_queries_lie_on_the_path_between_mapping_frames(scene) -> None:
+    layout, mapping = scene
+    path, frames = mapping_path(layout, SPEC)
+    assert np.array_equal(path[frames], mapping)
+    with create_renderer(layout, "mujoco", SPEC.width, SPEC.height) as r:
+        poses = sample_near_queries(layout, SPEC, path, frames, r)
+        again = sample_near_queries(layout, SPEC, path, frames, r)
+    assert len(poses) == SPEC.n_query and geometry.is_rigid(poses) and np.array_equal(poses, again)
+    for T in poses:  # a pose of the path, 30-70% of the way from one mapping frame to the next
+        j = int(np.flatnonzero(np.all(np.isclose(path, T), axis=(1, 2)))[0])
+        k = int(np.searchsorted(frames, j)) - 1
+        assert frames[k] < j < frames[k + 1]
+        assert 0.3 - 1e-9 <= (j - frames[k]) / (frames[k + 1] - frames[k]) <= 0.7 + 1e-9

@@ -1,6 +1,7 @@
 """Render the leaderboard from one or more results directories (of ``eval``, or ``score``'s --out):
 a markdown table, a CSV, a static HTML page with sortable columns, and plots (cumulative
-translation / rotation error curves, per-scene recall bars, top-down ground truth vs estimates).
+translation / rotation error curves, per-scene recall bars, top-down ground truth vs estimates, recall
+against each query's difficulty, whose numbers go to difficulty.csv).
 """
 
 from __future__ import annotations

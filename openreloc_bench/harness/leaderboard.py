@@ -1,15 +1,20 @@
 """The leaderboard: markdown, CSV, a sortable static HTML page and plots from a results directory.
 
 Reads the per-query tables every ``eval`` / ``score`` run leaves (``tables/queries.csv`` under each
-results directory given), so several runs, including outside submissions, merge into one board.
+results directory given), so several runs, including outside submissions, merge into one board. Where
+the queries carry their difficulty (generated scenes' ``difficulty.csv``), the board adds recall against
+each difficulty axis, as plots and as numbers (``difficulty.csv``).
 """
 
 from __future__ import annotations
 
 import html
+import math
+from collections.abc import Sequence
 from pathlib import Path
 
 import matplotlib
+import matplotlib.lines
 import matplotlib.ticker
 
 matplotlib.use("Agg")  # headless: no display on benchmark machines
@@ -20,10 +25,11 @@ import pandas as pd  # noqa: E402
 from openreloc_bench.data import io, paths  # noqa: E402
 from openreloc_bench.errors import DataError  # noqa: E402
 from openreloc_bench.harness.ablations import ROBUSTNESS_ROWS  # noqa: E402
-from openreloc_bench.harness.metrics import cumulative_curve  # noqa: E402
+from openreloc_bench.harness.metrics import cumulative_curve, summarize  # noqa: E402
 from openreloc_bench.harness.score import QUERY_COLUMNS  # noqa: E402
 from openreloc_bench.harness.tables import (  # noqa: E402
     SCENE_KEYS,
+    backfill_difficulty,
     build_tables,
     md_table,
     paper_table,
@@ -76,7 +82,7 @@ def load_queries(results: list[Path]) -> pd.DataFrame:
         path = r / "tables" / "queries.csv"
         if not path.is_file():
             raise DataError(r, "no tables/queries.csv (run 'openreloc-bench eval' or 'score' into it first)")
-        frames.append(read_query_csv(path, BOARD_INPUT_COLUMNS))
+        frames.append(backfill_difficulty(read_query_csv(path, BOARD_INPUT_COLUMNS)))
     return _last_run_per_query(pd.concat(frames, ignore_index=True))
 
 
@@ -172,10 +178,33 @@ def provenance(b: pd.DataFrame) -> str:
     return f"Rows from {len(commits)} commits (see the Commit column): {', '.join(commits)}."
 
 
-def to_markdown(b: pd.DataFrame, scenes: pd.DataFrame) -> str:
+def data_versions(q: pd.DataFrame) -> str:
+    """The data the per-query rows score, for the board's title: 'data v2', 'data v1 + v2', and 'scenes without a
+    data version' where some scene names none (imported data); empty for no rows."""
+    versions = q["data_version"].dropna()
+    parts = ["data " + " + ".join(f"v{v:.0f}" for v in sorted(versions.unique()))] if len(versions) else []
+    if q["data_version"].isna().any():
+        parts.append("scenes without a data version")
+    return ", ".join(parts)
+
+
+def _title(versions: str) -> str:
+    return f"openreloc-bench leaderboard ({versions})" if versions else "openreloc-bench leaderboard"
+
+
+DIFFICULTY_TEXT = (
+    "R@50cm (solid) and R@25cm (dashed) per bin of each query's difficulty (from its scene's difficulty.csv), "
+    "pooled over every scene and query split each method ran; n = queries in the bin. The numbers are in "
+    "difficulty.csv."
+)
+
+
+def to_markdown(b: pd.DataFrame, scenes: pd.DataFrame, versions: str = "", difficulty_plots: Sequence[str] = ()) -> str:
+    """The board: one table per track, the robustness table, per-scene tables, map sizes and the
+    recall-vs-difficulty plots (``difficulty_plots``, paths relative to the board)."""
     head = [BOARD_COLUMNS[c] for c in b.columns]
     lines = [
-        "# openreloc-bench leaderboard",
+        f"# {_title(versions)}",
         "",
         "Recall = share of all queries (failures count); MTE/MRE = mean error of the queries within the threshold.",
         "",
@@ -205,6 +234,9 @@ def to_markdown(b: pd.DataFrame, scenes: pd.DataFrame) -> str:
     if not sizes.empty:
         rows = [[method, track, *(_fmt("map_mb", v) for v in row)] for (method, track), row in sizes.iterrows()]
         lines += ["", "## Map size per scene [MB]", "", *md_table(["Method", "Track", *sizes.columns], rows)]
+    if difficulty_plots:
+        lines += ["", "## Recall vs difficulty", "", DIFFICULTY_TEXT, ""]
+        lines += [f"![recall vs difficulty]({p})" for p in difficulty_plots]
     return "\n".join(lines) + "\n"
 
 
@@ -231,7 +263,9 @@ def _html_table(title: str, head: list[str], rows: list[list[str]]) -> str:
     )
 
 
-def to_html(b: pd.DataFrame, plots: list[str]) -> str:
+def to_html(b: pd.DataFrame, plots: list[str], versions: str = "", difficulty_plots: Sequence[str] = ()) -> str:
+    """The sortable page: the board's tables, the robustness table, ``plots`` side by side and the
+    recall-vs-difficulty plots full width."""
     head = [BOARD_COLUMNS[c] for c in b.columns]
     tables = "".join(
         _html_table(title, head, [[_fmt(c, r[c]) for c in b.columns] for _, r in t.iterrows()])
@@ -241,8 +275,14 @@ def to_html(b: pd.DataFrame, plots: list[str]) -> str:
     if not drops.empty:
         tables += _html_table(ROBUSTNESS_TITLE, list(drops.columns), drops.values.tolist())
     imgs = "".join(f'<figure><img src="{html.escape(p)}" alt="{html.escape(p)}"></figure>' for p in plots)
+    if difficulty_plots:
+        imgs += f'<h2 class="clear">Recall vs difficulty</h2>\n<p>{html.escape(DIFFICULTY_TEXT)}</p>\n'
+        imgs += "".join(
+            f'<figure><img class="wide" src="{html.escape(p)}" alt="{html.escape(p)}"></figure>'
+            for p in difficulty_plots
+        )
     return f"""<!doctype html>
-<html lang="en"><head><meta charset="utf-8"><title>openreloc-bench leaderboard</title>
+<html lang="en"><head><meta charset="utf-8"><title>{html.escape(_title(versions))}</title>
 <style>
 body {{ font-family: system-ui, sans-serif; margin: 2em; color: #222; }}
 table {{ border-collapse: collapse; font-size: 14px; }}
@@ -253,8 +293,9 @@ th[data-dir=asc]::after {{ content: " ▲"; }} th[data-dir=desc]::after {{ conte
 td {{ white-space: nowrap; }} td:first-child, td:nth-child(2), td:nth-child(3) {{ text-align: left; }}
 tr:nth-child(even) {{ background: #fafafa; }}
 img {{ max-width: 48%; float: left; margin: 1%; }}
+img.wide {{ max-width: 98%; float: none; }} .clear {{ clear: both; }}
 </style></head><body>
-<h1>openreloc-bench leaderboard</h1>
+<h1>{html.escape(_title(versions))}</h1>
 <p>Recall = share of all queries (failed queries count). MTE/MRE = mean error of the queries within the
 threshold. Click a column header to sort. {html.escape(provenance(b))}</p>
 {tables}{imgs}
@@ -364,6 +405,107 @@ def plot_recall_vs_lighting(suite: pd.DataFrame, path: Path) -> bool:
     return True
 
 
+DIFFICULTY_BINS: dict[str, tuple[str, tuple[float, ...] | None]] = {
+    "gap_m": ("distance to the nearest mapping camera [m]", (0, 0.25, 0.5, 1, 2, math.inf)),
+    "gap_deg": ("rotation to mapping views within 1 m [°]", (0, 10, 20, 45, 90, math.inf)),
+    "visible_objects": ("objects in view", (0, 2, 4, 6, 8, 12, math.inf)),
+    "light_level": ("light level (1 = mapping lighting)", None),
+    "displaced_in_view": ("moved objects in view", (0, 1, 2, 3, math.inf)),
+    "lookalikes_in_view": ("objects in view with a look-alike", (0, 1, 2, 3, math.inf)),
+    "object_area": ("image share of the objects", (0, 0.1, 0.2, 0.3, 0.5, math.inf)),
+}
+"""Per difficulty axis: its plot title and bin edges, fixed so boards of different suites and runs bin alike
+(the gap bins meet the recall thresholds; None: one bin per value, for the few light levels)."""
+BINNED_COLUMNS = ("track", "method", "axis", "bin", "lo", "hi", "n", "recall_50cm", "recall_25cm")
+
+
+def _bin_labels(edges: np.ndarray, integral: bool) -> list[str]:
+    """'lo–hi' per bin [lo, hi) and '≥lo' for an open last one; for integer values the values a bin holds
+    ('1', '2–3', '8+')."""
+    if integral:
+        return [
+            f"{a:g}+" if math.isinf(b) else f"{a:g}" if b - a == 1 else f"{a:g}–{b - 1:g}"
+            for a, b in zip(edges, edges[1:])
+        ]
+    return [f"≥{a:g}" if math.isinf(b) else f"{a:g}–{b:g}" for a, b in zip(edges, edges[1:])]
+
+
+def binned_recall(queries: pd.DataFrame, axis: str, bins: Sequence[float] | None) -> pd.DataFrame:
+    """R@50cm and R@25cm of each (track, method) per bin of the difficulty column ``axis`` (columns
+    :data:`BINNED_COLUMNS`), over every scene and split the rows hold: which queries a method loses as they
+    get harder. ``bins``: increasing edges of the bins [lo, hi), or None for one bin per value (lo = hi).
+    ``n`` counts a bin's queries (a run over seeds scores each once per seed, and its recall is their mean);
+    rows without a value (scenes without ``difficulty.csv``) and empty bins are left out."""
+    if axis not in queries:
+        raise ValueError(f"the per-query rows have no column '{axis}'")
+    values = queries[axis].astype(float).to_numpy()
+    known = ~np.isnan(values)
+    if bins is None:
+        lo = hi = np.unique(values[known])
+        index = np.searchsorted(lo, values)
+        labels = [f"{v:g}" for v in lo]
+    else:
+        edges = np.asarray(bins, dtype=float)
+        if edges.ndim != 1 or len(edges) < 2 or np.any(np.isnan(edges)) or np.any(np.diff(edges) <= 0):
+            raise ValueError(f"bins of '{axis}' must be two or more increasing edges, got {list(bins)}")
+        lo, hi = edges[:-1], edges[1:]
+        index = np.searchsorted(edges, values, side="right") - 1
+        known &= (index >= 0) & (index < len(lo))
+        finite = np.r_[values[known], edges[np.isfinite(edges)]]
+        labels = _bin_labels(edges, integral=bool(np.all(finite % 1 == 0)))
+    rows = []
+    picked = queries[known].assign(_bin=index[known])
+    for (track, method, k), g in picked.groupby(["track", "method", "_bin"]):
+        m = summarize(g["t_err_m"].to_numpy(), g["r_err_deg"].to_numpy())
+        n = len(g[["scene", "split", "query"]].drop_duplicates())
+        rows.append((track, method, axis, labels[k], lo[k], hi[k], n, m["recall_50cm"], m["recall_25cm"]))
+    return pd.DataFrame(rows, columns=list(BINNED_COLUMNS))
+
+
+def difficulty_table(q: pd.DataFrame) -> pd.DataFrame:
+    """:func:`binned_recall` on every axis of :data:`DIFFICULTY_BINS`, one after the other."""
+    return pd.concat([binned_recall(q, axis, bins) for axis, (_, bins) in DIFFICULTY_BINS.items()], ignore_index=True)
+
+
+def plot_recall_vs_difficulty(binned: pd.DataFrame, title: str, path: Path) -> list[str]:
+    """One panel per difficulty axis of ``binned`` (:func:`binned_recall` rows) with more than one bin:
+    R@50cm (solid) and R@25cm (dashed) per bin, one colour per method, each bin's query count under its
+    label. Returns the axes drawn; none (and no file) when no axis has two bins (all queries alike, or no
+    difficulty known)."""
+    axes = [a for a in DIFFICULTY_BINS if binned.loc[binned["axis"] == a, "bin"].nunique() > 1]
+    if not axes:
+        return []
+    ncols = min(len(axes), 4)
+    fig, grid = plt.subplots(
+        math.ceil(len(axes) / ncols), ncols, figsize=(3.6 * ncols, 3.3 * math.ceil(len(axes) / ncols)), squeeze=False
+    )
+    cmap = plt.get_cmap("tab10")
+    methods = sorted(binned["method"].unique())
+    for ax, axis in zip(grid.flat, axes):
+        a = binned[binned["axis"] == axis]
+        bins = a.groupby("bin").agg(lo=("lo", "first"), n=("n", "max")).sort_values("lo")
+        x = np.arange(len(bins))
+        for k, method in enumerate(methods):
+            g = a[a["method"] == method].set_index("bin").reindex(bins.index)
+            ax.plot(x, g["recall_50cm"], "-", marker="o", ms=3, color=cmap(k % 10))
+            ax.plot(x, g["recall_25cm"], "--", marker="o", ms=3, mfc="none", color=cmap(k % 10), alpha=0.7)
+        ax.set_xticks(x, [f"{b}\nn={n}" for b, n in zip(bins.index, bins["n"])], fontsize=7)
+        ax.set(ylim=(-3, 103), title=DIFFICULTY_BINS[axis][0])  # lines at 0 and 100 stay visible
+        ax.title.set_fontsize(9)
+        ax.grid(alpha=0.3)
+    for row in grid:
+        row[0].set_ylabel("recall [%]")
+    for ax in grid.flat[len(axes) :]:
+        ax.axis("off")
+    Line2D = matplotlib.lines.Line2D
+    handles = [Line2D([], [], color=cmap(k % 10), marker="o", ms=3, label=m) for k, m in enumerate(methods)]
+    handles += [Line2D([], [], color="0.4", ls=ls, label=f"R@{t}") for ls, t in (("-", "50cm"), ("--", "25cm"))]
+    grid[0][-1].legend(handles=handles, fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0))
+    fig.suptitle(f"Recall vs difficulty, {title}: all query splits pooled")
+    _save(fig, path)
+    return axes
+
+
 def plot_topdown(q: pd.DataFrame, scene: str, path: Path) -> None:
     """Ground-truth vs estimated camera positions (x, y), a line from each truth to its estimate."""
     s = q[(q["scene"] == scene) & (q["split"] == "query")]
@@ -410,7 +552,24 @@ def write_leaderboard(results: list[Path], out: Path) -> list[Path]:
     for scene in sorted(q.loc[q["split"] == "query", "scene"].unique()):
         plots.append(plots_dir / f"topdown_{scene}.png")
         plot_topdown(q, scene, plots[-1])
+    binned = difficulty_table(q)
+    difficulty_plots = []
+    for track in [t for t in dict.fromkeys(b["track"]) if t != MASK_FREE] or [MASK_FREE]:
+        path = plots_dir / f"difficulty_{track}.png"
+        title = "methods that read no masks" if track == MASK_FREE else f"{track} track"
+        if plot_recall_vs_difficulty(binned[binned["track"].isin([track, MASK_FREE])], title, path):
+            difficulty_plots.append(path)
+    versions = data_versions(q)
+    rel = [str(p.relative_to(out)) for p in difficulty_plots]
     io.atomic_write_text(out / "leaderboard.csv", suite.to_csv(index=False))
-    io.atomic_write_text(out / "leaderboard.md", to_markdown(b, scenes))
-    io.atomic_write_text(out / "index.html", to_html(b, [str(p.relative_to(out)) for p in plots]))
-    return [out / "leaderboard.md", out / "leaderboard.csv", out / "index.html", *plots]
+    io.atomic_write_text(out / "difficulty.csv", binned.to_csv(index=False))
+    io.atomic_write_text(out / "leaderboard.md", to_markdown(b, scenes, versions, rel))
+    io.atomic_write_text(out / "index.html", to_html(b, [str(p.relative_to(out)) for p in plots], versions, rel))
+    return [
+        out / "leaderboard.md",
+        out / "leaderboard.csv",
+        out / "difficulty.csv",
+        out / "index.html",
+        *plots,
+        *difficulty_plots,
+    ]

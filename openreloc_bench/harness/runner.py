@@ -5,7 +5,7 @@ variant, scene), then one :class:`QueryJob` per (method variant, scene, split). 
 
     RESULTS/runs/<label>/<track>/<scene>/<split>.txt           T_cw pose file (estimates only)
                                          <split>.tum           TUM export (camera-to-world, for evo)
-                                         <split>.queries.csv   per-query errors, runtime, failure reason
+                                         <split>.queries.csv   per-query errors, runtime, failure reason, difficulty
                                          <split>.done.json     provenance + timings, written LAST
 
 each atomically, the marker last: a job is finished exactly when its marker exists, so ``--resume``
@@ -42,8 +42,15 @@ from openreloc_bench.errors import ConfigError, DataError
 from openreloc_bench.harness import cache
 from openreloc_bench.harness.ablations import ABLATED_METHOD, ABLATION_ROWS, ablation_label
 from openreloc_bench.harness.executors import exit_with, make_executor, mp_context
-from openreloc_bench.harness.score import QUERY_COLUMNS, Outcome, score_split
-from openreloc_bench.harness.tables import read_query_csv
+from openreloc_bench.harness.score import (
+    QUERY_COLUMNS,
+    Outcome,
+    data_version,
+    score_split,
+    split_difficulty,
+    with_difficulty,
+)
+from openreloc_bench.harness.tables import backfill_difficulty, read_query_csv
 from openreloc_bench.methods import (
     MASK_FREE,
     TRACKS,
@@ -344,7 +351,7 @@ def _run_query_job(job: QueryJob) -> dict[str, Any]:
     started = datetime.now(timezone.utc).isoformat(timespec="seconds")
     t0 = time.perf_counter()
     seq, outcomes, load_s = _localize_all(job)
-    table = score_split(seq, outcomes)
+    table = with_difficulty(score_split(seq, outcomes), Scene(job.scene_dir), job.split)
     poses = {n: o.T_wc for n, o in outcomes.items() if o.T_wc is not None}
     prov = job.provenance
     comments = [
@@ -457,6 +464,9 @@ def plan(cfg: EvalConfig) -> tuple[list[MapJob], list[QueryJob]]:
                 raise DataError(scene.root, f"scene has no split '{split}' (available: {', '.join(avail)})")
             # an incomplete or inconsistent scene fails here, before any work
             sizes[name, split] = len(scene.sequence(split))
+        for split in cfg.splits:  # so does a broken difficulty table or data version (the query tables join them)
+            split_difficulty(scene, split)
+        data_version(scene)
         if cfg.track == "oracle-mask":
             for split in cfg.splits:
                 if not (scene.root / split / "instance").is_dir():
@@ -660,7 +670,7 @@ def load_run_queries(out: Path) -> pd.DataFrame:
             df.insert(0, key, rec[key])
         df["variant"] = rec.get("variant", rec["method"])  # runs from before seeds: their own variant
         df["seed"] = pd.array([rec.get("seed")] * len(df), dtype="Int64")
-        frames.append(df)
+        frames.append(backfill_difficulty(df))
     return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
 
 

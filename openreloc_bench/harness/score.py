@@ -14,6 +14,7 @@ import pandas as pd
 
 from openreloc_bench import geometry
 from openreloc_bench.data.results import hloc_name, read_submission
+from openreloc_bench.data.scene import DIFFICULTY_COLUMNS, Scene
 from openreloc_bench.data.types import SceneSequence
 from openreloc_bench.errors import DataError
 
@@ -68,6 +69,38 @@ def score_split(seq: SceneSequence, outcomes: dict[str, Outcome]) -> pd.DataFram
         "gt_x": gt[:, 0, 3], "gt_y": gt[:, 1, 3], "gt_z": gt[:, 2, 3],
         "est_x": est[:, 0, 3], "est_y": est[:, 1, 3], "est_z": est[:, 2, 3],
     })  # fmt: skip
+
+
+DIFFICULTY_AXES = DIFFICULTY_COLUMNS[2:]
+"""The difficulty columns of the per-query tables, joined from each scene's ``difficulty.csv``."""
+
+
+def split_difficulty(scene: Scene, split: str) -> pd.DataFrame:
+    """``split``'s rows of the scene's ``difficulty.csv`` indexed by frame id (columns :data:`DIFFICULTY_AXES`;
+    none for a scene without the file)."""
+    table = scene.difficulty()
+    if table is None:
+        return pd.DataFrame(columns=list(DIFFICULTY_AXES), dtype=float)
+    return table.loc[table["split"] == split, ["frame", *DIFFICULTY_AXES]].set_index("frame")
+
+
+def with_difficulty(table: pd.DataFrame, scene: Scene, split: str) -> pd.DataFrame:
+    """``table`` (per-query rows of ``split``) with each query's difficulty joined on (split, frame id) and the
+    scene's ``data_version``, so results can be read against what made a query hard and boards can name the
+    data they score. NaN where the scene has no ``difficulty.csv`` (imported data) or no row for a query;
+    ``data_version`` empty where ``scene.json`` names none."""
+    joined = split_difficulty(scene, split).reindex(table["query"].str.partition("/")[2])
+    out = table.assign(**{c: joined[c].to_numpy() for c in DIFFICULTY_AXES})
+    out["data_version"] = pd.array([data_version(scene)] * len(out), dtype="Int64")
+    return out
+
+
+def data_version(scene: Scene) -> int | None:
+    """The benchmark data version ``scene.json`` names (None: not named, e.g. imported data)."""
+    version = scene.info.get("data_version")
+    if version is not None and (isinstance(version, bool) or not isinstance(version, int)):
+        raise DataError(scene.root / "scene.json", f"'data_version' must be an integer, got {version!r}")
+    return version
 
 
 MAPFREE_PREFIX = "pose_"
@@ -166,7 +199,6 @@ def score_submission(
     A scene or split without a file counts every query as failed ("missing"), as does a query
     absent from its file; malformed files (duplicates, NaN, non-unit quaternions) are errors.
     """
-    from openreloc_bench.data.scene import Scene
     from openreloc_bench.harness.cache import git_commit
 
     if not submission.is_dir():
@@ -179,6 +211,7 @@ def score_submission(
             outcomes = submission_outcomes(submission, name, seq, scene.splits(), names) or {}
             df = score_split(seq, outcomes)
             df["confidence"] = [outcomes[n].confidence if n in outcomes else float("nan") for n in df["query"]]
+            df = with_difficulty(df, scene, split)
             meta = {
                 "method": method,
                 "track": track,

@@ -24,6 +24,7 @@ from openreloc_bench.data import io
 from openreloc_bench.errors import DataError
 from openreloc_bench.harness.ablations import ABLATION_ROWS, FULL_ROW, ROBUSTNESS_ROWS, ablation_label
 from openreloc_bench.harness.metrics import METRIC_COLUMNS, summarize
+from openreloc_bench.harness.score import DIFFICULTY_AXES
 
 SCENE_KEYS = ["method", "track", "scene", "split"]
 SUITE_KEYS = ["method", "track", "split"]
@@ -38,7 +39,7 @@ COMPACT_COLUMNS = {
 def read_query_csv(path: Path, columns: tuple[str, ...]) -> pd.DataFrame:
     """A per-query table (``<split>.queries.csv``, ``tables/queries.csv``) with at least ``columns``;
     DataError naming the file when it is not UTF-8 CSV, lacks a column, or holds a non-number where
-    an error or position is expected (a truncated or edited file)."""
+    an error, position, difficulty or data version is expected (a truncated or edited file)."""
     try:
         df = pd.read_csv(_io.StringIO(io.read_text(path)), dtype={"reason": str})
     except (pd.errors.ParserError, pd.errors.EmptyDataError, ValueError) as e:
@@ -47,7 +48,8 @@ def read_query_csv(path: Path, columns: tuple[str, ...]) -> pd.DataFrame:
     if missing:
         raise DataError(path, f"no column '{missing[0]}': not a per-query table of openreloc-bench")
     numeric = [c for c in df if c.endswith(("_m", "_deg", "_s")) or c[:3] in ("gt_", "est")]
-    bad = [c for c in numeric if c in columns and not pd.api.types.is_numeric_dtype(df[c])]
+    checked = [c for c in df if (c in numeric and c in columns) or c in (*DIFFICULTY_AXES, "data_version")]
+    bad = [c for c in checked if not pd.api.types.is_numeric_dtype(df[c])]
     if len(df) and (bad or ("success" in columns and not pd.api.types.is_bool_dtype(df["success"]))):
         raise DataError(
             path, f"column '{(bad or ['success'])[0]}' holds values of the wrong type (truncated or edited)"
@@ -55,6 +57,17 @@ def read_query_csv(path: Path, columns: tuple[str, ...]) -> pd.DataFrame:
     if "reason" in df:
         df["reason"] = df["reason"].fillna("")
     return df
+
+
+def backfill_difficulty(queries: pd.DataFrame) -> pd.DataFrame:
+    """Per-query rows (with their ``spec_hash``) given the difficulty and ``data_version`` columns that tables
+    written before those existed lack: no difficulty, and data v1 for generated scenes (the data before versions
+    were recorded), none for imported ones (their spec hash is ``file:`` and a hash of their scene.json)."""
+    out = queries.assign(**{c: np.nan for c in DIFFICULTY_AXES if c not in queries})
+    if "data_version" not in out:
+        imported = out["spec_hash"].astype(str).str.startswith("file:")
+        out["data_version"] = pd.Series(1, index=out.index, dtype="Int64").mask(imported)
+    return out
 
 
 def metric_table(queries: pd.DataFrame, keys: list[str], maps: pd.DataFrame) -> pd.DataFrame:

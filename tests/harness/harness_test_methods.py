@@ -16,11 +16,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pandas as pd
 from scipy.spatial.transform import Rotation
 
 from openreloc_bench import geometry, methods
 from openreloc_bench.data import io
-from openreloc_bench.data.scene import SceneWriter
+from openreloc_bench.data.scene import DATA_VERSION, DIFFICULTY_COLUMNS, SceneWriter
 from openreloc_bench.data.types import SceneSequence
 from openreloc_bench.methods import Failure, PoseEstimate, QueryFrame
 
@@ -143,6 +144,30 @@ def make_scene(
                 geometry.look_at(eye, target),
             )
     return root / name
+
+
+DIFFICULTY = {
+    "split": ["query", "query", "query", "query_light1", "query_light1"],
+    "frame": ["000000", "000001", "000002", "000000", "000002"],
+    "gap_m": [0.4, 0.7, 1.5, 0.4, 1.5],
+    "gap_deg": [25.0, 40.0, 90.0, 25.0, 90.0],
+    "light_level": [1.0, 1.0, 1.0, 0.7, 0.7],
+    "visible_objects": [4, 2, 0, 4, 0],
+    "object_area": [0.3, 0.1, 0.0, 0.3, 0.0],
+    "displaced_in_view": [0, 0, 0, 0, 0],
+    "lookalikes_in_view": [1, 0, 0, 1, 0],
+}
+"""A difficulty table for :func:`difficulty_scene`; query_light1's frame 000001 has no row."""
+
+
+def difficulty_scene(root: Path, name: str, rows: dict[str, list]) -> Path:
+    """A tiny scene of the current data version with query and query_light1 splits (three queries each)
+    and ``rows`` as its difficulty.csv."""
+    path = make_scene(root, name, splits=("query", "query_light1"), seed=5)
+    w = SceneWriter(path)
+    w.write_scene_info({**io.read_json(path / "scene.json"), "data_version": DATA_VERSION})
+    w.write_difficulty(pd.DataFrame(rows, columns=list(DIFFICULTY_COLUMNS)))
+    return path
 
 
 def nap(seconds: float) -> int:

@@ -1,10 +1,23 @@
-"""The board's robustness table and provenance line."""
+"""The board's robustness table, provenance line, data version and recall against difficulty."""
 
 from __future__ import annotations
 
-import pandas as pd
+from pathlib import Path
 
-from openreloc_bench.harness.leaderboard import provenance, robustness_drops
+import numpy as np
+import pandas as pd
+import pytest
+
+from openreloc_bench.harness.leaderboard import (
+    binned_recall,
+    data_versions,
+    plot_recall_vs_difficulty,
+    provenance,
+    robustness_drops,
+    write_leaderboard,
+)
+from openreloc_bench.harness.score import DIFFICULTY_AXES
+from openreloc_bench.harness.tables import backfill_difficulty
 
 
 def rows(method: str, track: str, recalls: dict[str, tuple[float, float]], seeds: dict[str, int]) -> pd.DataFrame:
@@ -39,3 +52,92 @@ def test_provenance_names_one_commit_or_each() -> None:
     assert provenance(one) == "Every row comes from commit abc."
     two = pd.concat([one, one.assign(git_commit="def")])
     assert provenance(two) == "Rows from 2 commits (see the Commit column): abc, def."
+
+
+def errors(t: list[float]) -> dict[str, np.ndarray]:
+    """Translation errors as given, 1° of rotation where localized (inf where not)."""
+    t_err = np.array(t, dtype=float)
+    return {"t_err_m": t_err, "r_err_deg": np.where(np.isfinite(t_err), 1.0, np.inf)}
+
+
+def test_binned_recall_counts_queries_and_pools_seeds_per_bin() -> None:
+    q = pd.DataFrame(
+        {
+            "track": "predicted", "method": ["a"] * 6 + ["b"] * 2 + ["c"] * 2, "scene": "s", "split": "query",
+            "query": [f"query/{i:06d}" for i in (0, 1, 2, 3, 4, 5, 0, 1, 0, 0)],  # c: one query, two seeds
+            **errors([0.1, 0.4, 0.2, np.inf, 0.1, 0.3, 0.6, 0.2, 0.1, 0.4]),
+            "gap_m": [0.1, 0.2, 0.3, 0.6, np.nan, 3.0, 0.1, 0.2, 0.1, 0.1],
+            "visible_objects": [0, 1, 2, 5, 3, 9, 0, 1, 0, 0],
+            "light_level": [1.0, 0.5, 0.5, 1.0, 1.0, 1.0, 1.0, 0.5, 1.0, 1.0],
+        }
+    )  # fmt: skip
+    gap = binned_recall(q, "gap_m", (0, 0.25, 0.5, 2)).set_index(["method", "bin"])
+    assert list(gap.loc["a"].index) == ["0–0.25", "0.25–0.5", "0.5–2"]  # no value, or past the last edge: left out
+    assert gap.loc["a", ["n", "recall_50cm", "recall_25cm"]].values.tolist() == [[2, 100, 50], [1, 100, 100], [1, 0, 0]]
+    assert gap.loc[("a", "0.5–2"), ["lo", "hi"]].tolist() == [0.5, 2.0] and set(gap["axis"]) == {"gap_m"}
+    assert gap.loc[("b", "0–0.25"), ["n", "recall_50cm", "recall_25cm"]].tolist() == [2, 50, 50]
+    assert gap.loc[("c", "0–0.25"), ["n", "recall_50cm", "recall_25cm"]].tolist() == [1, 100, 50]
+    objects = binned_recall(q[q["method"] == "a"], "visible_objects", (0, 1, 2, 4, np.inf)).set_index("bin")
+    assert list(objects.index) == ["0", "1", "2–3", "4+"]  # whole numbers: the counts a bin holds
+    assert objects.loc["4+", ["n", "recall_50cm", "recall_25cm"]].tolist() == [2, 50, 0]
+    light = binned_recall(q[q["method"] == "a"], "light_level", None).set_index("bin")
+    assert list(light.index) == ["0.5", "1"] and light["n"].tolist() == [2, 4] and light.loc["0.5", "lo"] == 0.5
+    with pytest.raises(ValueError, match="increasing edges"):
+        binned_recall(q, "gap_m", (0, 0.5, 0.25))
+    with pytest.raises(ValueError, match="no column 'gap_deg'"):
+        binned_recall(q, "gap_deg", (0, 10))
+
+
+def results_dir(root: Path, method: str, versioned: bool = True) -> Path:
+    """A results folder whose tables/queries.csv holds eight queries of one scene on two splits, with their
+    difficulty and data v2, or (not ``versioned``) as tables were written before either existed."""
+    q = pd.DataFrame(
+        {
+            "method": method, "track": "predicted", "scene": "s1", "split": ["query"] * 4 + ["query_light1"] * 4,
+            "query": [f"{s}/{i:06d}" for s in ("query", "query_light1") for i in range(4)],
+            "success": True, **errors([0.1, 0.3, 0.6, 0.1, 0.3, 0.3, 0.6, 0.6]), "runtime_s": 0.01, "reason": "",
+            **{f"{p}_{a}": 0.0 for p in ("gt", "est") for a in "xyz"},
+            "map_hash": "h", "config_hash": "c", "spec_hash": "spec", "git_commit": "abc",
+            "gap_m": [0.1, 0.3, 0.6, 0.1] * 2, "gap_deg": np.nan, "light_level": [1.0] * 4 + [0.5] * 4,
+            "visible_objects": 3, "object_area": np.nan, "displaced_in_view": 0, "lookalikes_in_view": [0, 1] * 4,
+        }
+    )  # fmt: skip
+    if versioned:
+        q["data_version"] = 2
+    else:
+        q = q.drop(columns=list(DIFFICULTY_AXES))
+    (root / "tables").mkdir(parents=True)
+    q.to_csv(root / "tables" / "queries.csv", index=False)
+    return root
+
+
+def test_boards_plot_recall_against_each_difficulty_axis_with_values(tmp_path: Path) -> None:
+    out = tmp_path / "board"
+    files = write_leaderboard([results_dir(tmp_path / "r", "m")], out)
+    png = out / "plots" / "difficulty_predicted.png"
+    assert png in files and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    md = (out / "leaderboard.md").read_text()
+    assert md.startswith("# openreloc-bench leaderboard (data v2)\n")
+    assert "## Recall vs difficulty" in md and "![recall vs difficulty](plots/difficulty_predicted.png)" in md
+    page = (out / "index.html").read_text()
+    assert "<h1>openreloc-bench leaderboard (data v2)</h1>" in page and 'src="plots/difficulty_predicted.png"' in page
+    numbers = pd.read_csv(out / "difficulty.csv").set_index(["axis", "bin"])
+    # pooled over both splits: gap 0.1 m twice per split (errors 0.1, 0.1, 0.3, 0.6 m); light 1 and 0.5 vary
+    assert numbers.loc[("gap_m", "0–0.25"), ["n", "recall_50cm", "recall_25cm"]].tolist() == [4, 75, 50]
+    assert numbers.loc[("light_level", "0.5"), ["n", "recall_50cm", "recall_25cm"]].tolist() == [4, 50, 0]
+    drawn = plot_recall_vs_difficulty(numbers.reset_index(), "predicted track", tmp_path / "p.png")
+    assert drawn == ["gap_m", "light_level", "lookalikes_in_view"]  # all NaN or one value: no panel
+
+
+def test_boards_name_the_data_version_they_score(tmp_path: Path) -> None:
+    out = tmp_path / "board"
+    write_leaderboard([results_dir(tmp_path / "old", "m", versioned=False)], out)
+    md = (out / "leaderboard.md").read_text()
+    assert md.startswith("# openreloc-bench leaderboard (data v1)\n")  # tables without the column: v1 data
+    assert "Recall vs difficulty" not in md and not (out / "plots" / "difficulty_predicted.png").exists()
+    q = pd.DataFrame({"spec_hash": ["a", "file:0f3e", "b"], "data_version": [2, 2, 2]})
+    assert (
+        data_versions(backfill_difficulty(q.drop(columns="data_version"))) == "data v1, scenes without a data version"
+    )
+    assert data_versions(q.assign(data_version=[1, 2, 2])) == "data v1 + v2"
+    assert data_versions(q) == "data v2"

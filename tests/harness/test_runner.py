@@ -9,12 +9,14 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from harness_test_methods import DIFFICULTY, difficulty_scene, make_scene
 
 from openreloc_bench.data import io
 from openreloc_bench.data.results import read_results, read_tum_trajectory
 from openreloc_bench.errors import ConfigError, DataError
 from openreloc_bench.harness import runner, tables
 from openreloc_bench.harness.runner import EvalConfig, MethodRun
+from openreloc_bench.harness.score import DIFFICULTY_AXES
 
 PLUGIN = ["harness_test_methods"]
 
@@ -180,6 +182,39 @@ def test_bad_input_is_rejected_before_any_work(
     with pytest.raises(error, match=match):
         runner.evaluate(c)
     assert not (tmp_path / "maps").exists()
+
+
+def test_query_tables_carry_the_scene_difficulty_and_older_tables_still_load(tmp_path: Path) -> None:
+    data, out = tmp_path / "data", tmp_path / "r"
+    difficulty_scene(data, "sD", DIFFICULTY)
+    make_scene(data, "sP", splits=("query", "query_light1"))  # no difficulty.csv, no data version: imported data
+    c = cfg(data, out, [MethodRun("test-oracle", "test-oracle")], splits=["query", "query_light1"])
+    c.scenes = ["sD", "sP"]
+    assert runner.evaluate(c).errors == []
+    runs = out / "runs" / "test-oracle" / "oracle-mask"
+    light = pd.read_csv(runs / "sD" / "query_light1.queries.csv")
+    np.testing.assert_array_equal(light["gap_deg"], [25.0, np.nan, 90.0])  # frame 000001 has no row
+    assert light["data_version"].tolist() == [2, 2, 2]
+    q = runner.load_run_queries(out).set_index(["scene", "query"])
+    assert q.loc[("sD", "query/000001"), "visible_objects"] == 2 and q.loc[("sD", "query/000002"), "gap_m"] == 1.5
+    plain = q.loc["sP"]
+    assert len(plain) == 6 and plain[[*DIFFICULTY_AXES, "data_version"]].isna().all().all()
+    # a per-query table written before these columns existed: loads, with no difficulty and data v1
+    old = runs / "sD" / "query.queries.csv"
+    pd.read_csv(old).drop(columns=[*DIFFICULTY_AXES, "data_version"]).to_csv(old, index=False)
+    q = runner.load_run_queries(out).set_index(["scene", "split"])
+    assert q.loc[("sD", "query"), "data_version"].tolist() == [1, 1, 1]
+    assert q.loc[("sD", "query"), list(DIFFICULTY_AXES)].isna().all().all()
+    assert q.loc[("sD", "query_light1"), "light_level"].tolist()[::2] == [0.7, 0.7]
+
+
+def test_a_broken_difficulty_table_is_rejected_before_any_work(tmp_path: Path) -> None:
+    difficulty_scene(tmp_path / "data", "sD", {**DIFFICULTY, "gap_m": ["far", *DIFFICULTY["gap_m"][1:]]})
+    c = cfg(tmp_path / "data", tmp_path / "r", [MethodRun("test-oracle", "test-oracle")])
+    c.scenes = ["sD"]
+    with pytest.raises(DataError, match="difficulty.csv.*column 'gap_m' holds a value that is no number"):
+        runner.evaluate(c)
+    assert not (tmp_path / "r" / "maps").exists()
 
 
 @pytest.mark.parametrize(("timeout_s", "workers"), [(0.0, 1), (30.0, 1), (0.0, 2)])

@@ -1,4 +1,4 @@
-"""Per-query scoring of one split."""
+"""Per-query scoring of one split, and the difficulty each query row carries."""
 
 from __future__ import annotations
 
@@ -6,10 +6,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from harness_test_methods import perturb
+from harness_test_methods import DIFFICULTY, difficulty_scene, perturb
 
-from openreloc_bench.data.scene import Scene
-from openreloc_bench.harness.score import Outcome, score_split
+from openreloc_bench.data.scene import DATA_VERSION, Scene
+from openreloc_bench.errors import DataError
+from openreloc_bench.harness.score import DIFFICULTY_AXES, Outcome, score_split, with_difficulty
 
 
 def test_score_split_rows(data_dir: Path) -> None:
@@ -32,3 +33,29 @@ def test_unknown_query_names_are_rejected(data_dir: Path) -> None:
     seq = Scene(data_dir / "sA").sequence("query")
     with pytest.raises(ValueError, match="unknown queries"):
         score_split(seq, {"query/777777": Outcome("query/777777", np.eye(4))})
+
+
+def test_query_rows_carry_their_difficulty_and_data_version(tmp_path: Path) -> None:
+    scene = Scene(difficulty_scene(tmp_path, "sD", DIFFICULTY))
+    df = with_difficulty(score_split(scene.sequence("query_light1"), {}), scene, "query_light1")
+    # joined on (split, frame): query_light1's rows, not query's; frame 000001 has no row
+    np.testing.assert_array_equal(df["gap_m"], [0.4, np.nan, 1.5])
+    np.testing.assert_array_equal(df["light_level"], [0.7, np.nan, 0.7])
+    np.testing.assert_array_equal(df["lookalikes_in_view"], [1, np.nan, 0])
+    assert df["data_version"].tolist() == [DATA_VERSION] * 3
+    full = with_difficulty(score_split(scene.sequence("query"), {}), scene, "query")
+    assert full["visible_objects"].tolist() == [4, 2, 0] and full["object_area"].tolist() == [0.3, 0.1, 0.0]
+
+
+def test_a_scene_without_difficulty_gets_empty_columns(data_dir: Path) -> None:
+    scene = Scene(data_dir / "sA")
+    df = with_difficulty(score_split(scene.sequence("query"), {}), scene, "query")
+    assert df[list(DIFFICULTY_AXES)].isna().all().all() and df["data_version"].isna().all()
+    assert list(df.columns[-8:]) == [*DIFFICULTY_AXES, "data_version"]
+
+
+def test_a_frame_with_two_difficulty_rows_is_a_clear_error(tmp_path: Path) -> None:
+    twice = {k: v + v[-1:] for k, v in DIFFICULTY.items()}
+    scene = Scene(difficulty_scene(tmp_path, "sD", twice))
+    with pytest.raises(DataError, match="frame 000002 of split 'query_light1' has two rows"):
+        with_difficulty(score_split(scene.sequence("query"), {}), scene, "query")  # the table is wrong as a whole

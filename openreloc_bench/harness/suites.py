@@ -13,13 +13,18 @@ from openreloc_bench.data.scene import SceneWriter, check_scene_info
 from openreloc_bench.errors import ConfigError
 
 
-def suite_specs(suite_path: Path) -> list[Any]:
-    """The suite's scene specs (``generators.spec.SceneSpec``), validated."""
+def suite_spec(suite_path: Path) -> Any:
+    """The suite (``generators.spec.SuiteSpec``: name, purpose, description, scenes), validated."""
     try:
         from generators.spec import load_suite
     except ImportError as e:
         raise ConfigError(f"the scene generator is not available ({e}); use --scenes with existing scenes") from None
-    return load_suite(suite_path).scene_specs()
+    return load_suite(suite_path)
+
+
+def suite_specs(suite_path: Path) -> list[Any]:
+    """The suite's scene specs (``generators.spec.SceneSpec``), validated."""
+    return suite_spec(suite_path).scene_specs()
 
 
 def suite_scene_names(suite_path: Path) -> list[str]:

@@ -12,6 +12,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 
 from openreloc_bench import geometry
 from openreloc_bench.cli import main
@@ -93,3 +94,34 @@ def test_bench_harness_reports_overhead_in_both_modes() -> None:
     for row in rows:
         wall, method_s, overhead = (float(v) for v in row[-4:-1])
         assert abs(wall - method_s - overhead) < 0.02
+
+
+def test_periodic_shifts_counts_wrong_poses_whole_periods_away(tmp_path: Path) -> None:
+    sys.path.insert(0, str(BENCHMARKS))
+    try:
+        from periodic_shifts import shift_table, whole_period_shift
+    finally:
+        sys.path.remove(str(BENCHMARKS))
+    offsets = np.array([[1.0, 0.0, 0.0], [0.52, -0.49, 0.0], [0.3, 0.0, 0.0], [0.01, 0.0, 0.0]])
+    assert whole_period_shift(offsets, 0.5, 0.05).tolist() == [True, True, False, False]
+    queries = pd.DataFrame(
+        {
+            "variant": "m",
+            "track": "mask-free",
+            "split": "query",
+            "gt_x": 0.0,
+            "gt_y": 0.0,
+            "gt_z": 0.0,
+            "est_x": [0.0, 1.0, 1.0, 0.8, np.nan],
+            "est_y": 0.0,
+            "est_z": 0.0,
+            "t_err_m": [0.0, 1.0, 1.0, 0.8, np.nan],
+            "r_err_deg": [0.1, 0.2, 5.0, 0.1, np.nan],
+        }
+    )
+    row = shift_table(queries, 0.5, 0.05, 0.5, 1.0).iloc[0]
+    # three wrong estimates (one missing is a failure, not a wrong pose); one keeps its rotation at 2 periods
+    assert (row["queries"], row["wrong"], row["at_periods"], row["share_at_periods"]) == (5, 3, 1, 33.3)
+    assert row["recall_50cm"] == 20.0
+    result = run_benchmark("periodic_shifts.py", str(tmp_path))
+    assert result.returncode == 2 and "no finished query jobs" in result.stderr

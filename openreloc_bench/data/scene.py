@@ -171,6 +171,17 @@ def _field_ok(value: Any, shape: tuple[int, ...] | None) -> bool:
     return isinstance(value, str) if shape is None else _finite_array(value, shape) is not None
 
 
+def generated_data_version(info: dict[str, Any]) -> int | None:
+    """The benchmark data version of a generated scene's ``scene.json`` (1 where it predates versions);
+    None for data that was not generated (imported recordings)."""
+    return info.get("data_version", 1) if "generator_version" in info else None
+
+
+def other_version(version: int) -> str:
+    """Why a scene of benchmark data ``version`` is not read, for one-line errors."""
+    return f"generated as benchmark data v{version}, this openreloc-bench reads v{DATA_VERSION}"
+
+
 class Scene:
     """Read access to one generated (or converted) scene directory."""
 
@@ -180,12 +191,10 @@ class Scene:
             raise DataError(self.root, "scene directory not found")
         info_path = self.root / "scene.json"
         self.info: dict[str, Any] = check_scene_info(io.read_json(info_path), info_path)
-        version = self.info.get("data_version", 1)
-        if "generator_version" in self.info and version != DATA_VERSION:
+        version = generated_data_version(self.info)
+        if version not in (None, DATA_VERSION):
             raise DataError(
-                self.root,
-                f"generated as benchmark data v{version}, this openreloc-bench reads v{DATA_VERSION}: "
-                "regenerate it (`openreloc-bench generate SUITE --out DIR`) into a new folder",
+                self.root, other_version(version) + ": regenerate it (`openreloc-bench generate SUITE --out DIR`)"
             )
         objects_path = self.root / "objects.json"
         raw = io.read_json(objects_path) if objects_path.exists() else []

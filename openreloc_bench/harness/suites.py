@@ -9,7 +9,13 @@ from pathlib import Path
 from typing import Any
 
 from openreloc_bench.data import io, paths
-from openreloc_bench.data.scene import SceneWriter, check_scene_info
+from openreloc_bench.data.scene import (
+    DATA_VERSION,
+    SceneWriter,
+    check_scene_info,
+    generated_data_version,
+    other_version,
+)
 from openreloc_bench.errors import ConfigError
 
 
@@ -46,6 +52,12 @@ def ensure_suite_scenes(suite_path: Path, data: Path) -> list[str]:
             paths.check_output(data / spec.name, [suite_path], "scene directory")
             state = scene_state(data / spec.name, spec_hash(spec))
             if state == "other spec":
+                version = _data_version(data / spec.name)
+                if version not in (None, DATA_VERSION):
+                    raise ConfigError(
+                        f"{data / spec.name} was {other_version(version)}: generate the suite into another --data "
+                        f"(`openreloc-bench generate {suite_path} --out DIR`)"
+                    )
                 raise ConfigError(
                     f"{data / spec.name} was generated from another spec than {suite_path} asks for; "
                     "move it away or use another --data"
@@ -62,6 +74,11 @@ def ensure_suite_scenes(suite_path: Path, data: Path) -> list[str]:
                 print(f"generating scene {spec.name} ({state}) ...", flush=True)
                 generate_scene(spec, data, resume=state == "partial")
     return [s.name for s in specs]
+
+
+def _data_version(root: Path) -> int | None:
+    info_path = root / "scene.json"
+    return generated_data_version(io.read_json(info_path)) if info_path.is_file() else None
 
 
 def scene_state(root: Path, expected_hash: str) -> str:

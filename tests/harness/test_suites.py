@@ -1,0 +1,30 @@
+"""Suites on disk: a scene folder that the suite did not generate is never replaced, and the refusal says why."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from openreloc_bench.data.scene import DATA_VERSION
+from openreloc_bench.errors import ConfigError
+from openreloc_bench.harness.suites import ensure_suite_scenes
+
+SMOKE = Path(__file__).resolve().parents[2] / "scenes" / "smoke.yaml"
+
+
+@pytest.mark.parametrize(
+    ("info", "message"),
+    [
+        ({"generator_version": "0.1.0+gen2"}, "generated as benchmark data v1, this openreloc-bench reads v2"),
+        ({"generator_version": "0.1.0+gen3", "data_version": DATA_VERSION}, "generated from another spec"),
+    ],
+)
+def test_a_scene_of_another_version_or_spec_is_refused(tmp_path: Path, info: dict, message: str) -> None:
+    scene = tmp_path / "smoke-room"
+    scene.mkdir()
+    (scene / "scene.json").write_text(json.dumps({"spec_hash": "not-this-one", **info}))
+    with pytest.raises(ConfigError, match=message):
+        ensure_suite_scenes(SMOKE, tmp_path)
+    assert json.loads((scene / "scene.json").read_text())["spec_hash"] == "not-this-one"  # left as it was

@@ -48,7 +48,7 @@ MAX_OBJECTS_PER_M2 = 2.5
 """Upper bound on objects per square metre of the smallest possible room (floor + surface + wall items)."""
 
 MAX_QUERIES = 10_000
-"""Upper bound on ``n_query``: each query is rendered in six splits, so more is a typo, not a benchmark."""
+"""Upper bound on ``n_query``: each query is rendered in seven splits, so more is a typo, not a benchmark."""
 
 MIN_MAPPING_STEP_M = 0.01
 MIN_MAPPING_STEP_DEG = 0.5

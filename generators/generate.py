@@ -169,11 +169,12 @@ def generate_scene(spec: SceneSpec, out_dir: Path | str, resume: bool = False, p
     finally:
         renderer.close()
     moved = {d.id for d in displacements}
-    measured = {
+    instances = {s: read_instances(root / s, len(splits[s][0])) for s in ("query", "query_near", "query_displaced")}
+    measured = {  # the lighting variants see what query sees
         split: (
             poses,
             lighting.level,
-            read_instances(root / split, len(poses)),
+            instances["query" if split in LIGHT_SPLITS else split],
             moved if split == "query_displaced" else set(),
         )
         for split, (poses, lighting) in splits.items()

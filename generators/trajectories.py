@@ -15,6 +15,7 @@ ids at low resolution). ``query_near`` poses lie on the mapping path between con
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import networkx as nx
@@ -323,6 +324,15 @@ def visible_objects(instance: np.ndarray, structural_ids: set[int]) -> int:
     return len(visible_ids(instance, structural_ids))
 
 
+def visibility_check(layout: Layout, spec: SceneSpec, renderer: Renderer) -> Callable[[np.ndarray], int]:
+    """Counts the non-structural objects visible from a camera pose, on a :data:`CHECK_WIDTH` instance render."""
+    structural = {i.id for i in layout.instances if i.structural}
+    cw = min(CHECK_WIDTH, spec.width)
+    ch = max(8, int(round(cw * spec.height / spec.width)))
+    K_check = geometry.intrinsics_from_fov(cw, ch, spec.fov_y)
+    return lambda T: visible_objects(renderer.render_instances(T, K_check, cw, ch), structural)
+
+
 def sample_queries(
     layout: Layout, spec: SceneSpec, mapping: np.ndarray, renderer: Renderer, max_tries_per_query: int = 400
 ) -> tuple[np.ndarray, list[QueryInfo]]:
@@ -333,11 +343,8 @@ def sample_queries(
     if not any(len(c) for c in cells):
         raise RuntimeError("no free space for query poses")
     weights = np.array([len(c) for c in cells], float)
-    structural = {i.id for i in layout.instances if i.structural}
     boxes = np.array([i.aabb for i in layout.instances if not i.structural]).reshape(-1, 2, 3)
-    cw = min(CHECK_WIDTH, spec.width)
-    ch = max(8, int(round(cw * spec.height / spec.width)))
-    K_check = geometry.intrinsics_from_fov(cw, ch, spec.fov_y)
+    count_visible = visibility_check(layout, spec, renderer)
     centres = mapping[:, :3, 3]
     poses, infos = [], []
     tries = 0
@@ -364,7 +371,7 @@ def sample_queries(
         min_ang = float(ang[within].min()) if within.any() else float("inf")
         if min_ang < spec.query_min_angle:
             continue
-        n_vis = visible_objects(renderer.render_instances(T, K_check, cw, ch), structural)
+        n_vis = count_visible(T)
         if n_vis < spec.query_min_objects:
             continue
         poses.append(T)
@@ -389,10 +396,7 @@ def sample_near_queries(
     gives one before any gives two, so queries spread along the path. Deterministic in the seed."""
     rng = np.random.default_rng([spec.seed, 19])
     step = np.r_[np.linalg.norm(np.diff(path[:, :3, 3], axis=0), axis=1), np.inf]
-    structural = {i.id for i in layout.instances if i.structural}
-    cw = min(CHECK_WIDTH, spec.width)
-    ch = max(8, int(round(cw * spec.height / spec.width)))
-    K_check = geometry.intrinsics_from_fov(cw, ch, spec.fov_y)
+    count_visible = visibility_check(layout, spec, renderer)
     chosen: set[int] = set()
     for _ in range(NEAR_QUERY_ROUNDS):  # each round takes at most one more pose from every gap
         for k in rng.permutation(len(frames) - 1):
@@ -401,10 +405,7 @@ def sample_near_queries(
                 continue
             window = np.arange(max(a + 1, int(np.ceil(a + 0.3 * (b - a)))), min(b, int(a + 0.7 * (b - a)) + 1))
             for j in (int(j) for j in rng.permutation(window) if int(j) not in chosen):
-                if (
-                    visible_objects(renderer.render_instances(path[j], K_check, cw, ch), structural)
-                    >= spec.query_min_objects
-                ):
+                if count_visible(path[j]) >= spec.query_min_objects:
                     chosen.add(j)
                     break
             if len(chosen) == spec.n_query:

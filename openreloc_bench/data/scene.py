@@ -62,9 +62,10 @@ DIFFICULTY_COLUMNS = (
     "lookalikes_in_view",
 )
 """Columns of ``difficulty.csv``: per query frame, the distance (m) to the nearest mapping camera and the
-smallest rotation (deg) to a mapping frame within 1 m, the split's light level (1 = mapping lighting), the non-structural objects covering at
-least 0.5% of the image, the image share all of them cover, how many of the visible ones were moved
-(``query_displaced``) and how many have an identical twin in the scene."""
+smallest rotation (deg) to a mapping frame within 1 m, the split's light level (1 = mapping lighting),
+the non-structural objects covering at least 0.5% of the image, the image share all of them cover, how
+many of the visible ones were moved (``query_displaced``) and how many have an identical twin in the
+scene."""
 STRUCTURAL_CATEGORIES = frozenset(
     {"wall", "floor", "ceiling", "door", "doorway", "window", "stairs", "railing", "baseboard", "column"}
 )
@@ -191,6 +192,9 @@ class Scene:
             raise DataError(self.root, "scene directory not found")
         info_path = self.root / "scene.json"
         self.info: dict[str, Any] = check_scene_info(io.read_json(info_path), info_path)
+        named = self.info.get("data_version")
+        if named is not None and (isinstance(named, bool) or not isinstance(named, int)):
+            raise DataError(info_path, f"'data_version' must be an integer, got {named!r}")
         version = generated_data_version(self.info)
         if version not in (None, DATA_VERSION):
             raise DataError(
@@ -210,6 +214,11 @@ class Scene:
     @property
     def name(self) -> str:
         return self.root.name
+
+    @property
+    def data_version(self) -> int | None:
+        """The benchmark data version ``scene.json`` names (None: not named, e.g. imported data)."""
+        return self.info.get("data_version")
 
     @property
     def spec_hash(self) -> str:

@@ -26,7 +26,7 @@ from PIL import Image  # noqa: E402
 
 from openreloc_bench import bars  # noqa: E402
 from openreloc_bench.data import io, paths  # noqa: E402
-from openreloc_bench.data.scene import DATA_VERSION, QUERY_SPLITS, Scene, check_scene_info  # noqa: E402
+from openreloc_bench.data.scene import DATA_VERSION, QUERY_SPLITS, Scene, check_scene_info, other_version  # noqa: E402
 from openreloc_bench.errors import DataError  # noqa: E402
 from openreloc_bench.harness.suites import scene_state, suite_spec  # noqa: E402
 from openreloc_bench.harness.tables import md_table  # noqa: E402
@@ -104,8 +104,8 @@ def suite_scenes(suite_path: Path, data: Path) -> tuple[Any, list[Scene]]:
     if version != DATA_VERSION:
         raise DataError(
             data,
-            f"scenes are benchmark data v{version}, this openreloc-bench reads v{DATA_VERSION}: regenerate them "
-            f"(`openreloc-bench generate {suite_path} --out DIR`) into a new folder",
+            f"scenes {other_version(version)}: regenerate them (`openreloc-bench generate {suite_path} --out DIR`) "
+            "into a new folder",
         )
     from generators.spec import spec_hash
 

@@ -45,9 +45,7 @@ from openreloc_bench.harness.executors import exit_with, make_executor, mp_conte
 from openreloc_bench.harness.score import (
     QUERY_COLUMNS,
     Outcome,
-    data_version,
     score_split,
-    split_difficulty,
     with_difficulty,
 )
 from openreloc_bench.harness.tables import backfill_difficulty, read_query_csv
@@ -464,9 +462,7 @@ def plan(cfg: EvalConfig) -> tuple[list[MapJob], list[QueryJob]]:
                 raise DataError(scene.root, f"scene has no split '{split}' (available: {', '.join(avail)})")
             # an incomplete or inconsistent scene fails here, before any work
             sizes[name, split] = len(scene.sequence(split))
-        for split in cfg.splits:  # so does a broken difficulty table or data version (the query tables join them)
-            split_difficulty(scene, split)
-        data_version(scene)
+        scene.difficulty()  # so does a broken difficulty table (the query tables join it)
         if cfg.track == "oracle-mask":
             for split in cfg.splits:
                 if not (scene.root / split / "instance").is_dir():

@@ -91,16 +91,8 @@ def with_difficulty(table: pd.DataFrame, scene: Scene, split: str) -> pd.DataFra
     ``data_version`` empty where ``scene.json`` names none."""
     joined = split_difficulty(scene, split).reindex(table["query"].str.partition("/")[2])
     out = table.assign(**{c: joined[c].to_numpy() for c in DIFFICULTY_AXES})
-    out["data_version"] = pd.array([data_version(scene)] * len(out), dtype="Int64")
+    out["data_version"] = pd.array([scene.data_version] * len(out), dtype="Int64")
     return out
-
-
-def data_version(scene: Scene) -> int | None:
-    """The benchmark data version ``scene.json`` names (None: not named, e.g. imported data)."""
-    version = scene.info.get("data_version")
-    if version is not None and (isinstance(version, bool) or not isinstance(version, int)):
-        raise DataError(scene.root / "scene.json", f"'data_version' must be an integer, got {version!r}")
-    return version
 
 
 MAPFREE_PREFIX = "pose_"

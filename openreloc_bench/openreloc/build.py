@@ -31,6 +31,8 @@ from openreloc_bench.errors import ConfigError
 from openreloc_bench.openreloc import mapping
 from openreloc_bench.openreloc.descriptors import DescriptorConfig, compute_descriptors
 from openreloc_bench.openreloc.filtering import FilterConfig, invalid_landmarks
+from openreloc_bench.openreloc.instance_eval import instance_report
+from openreloc_bench.openreloc.instance_repair import repair_instances
 from openreloc_bench.openreloc.map import Landmark, ObjectMap
 from openreloc_bench.openreloc.reference_frames import ReferenceFrameConfig, landmark_sightings, select_reference_frames
 from openreloc_bench.openreloc.scene_graph import GraphConfig, build_scene_graph
@@ -90,33 +92,17 @@ def build_object_map(
     if source == "masks" and not mapping_seq.has_instances:
         raise ConfigError("mapping: the mapping frames have no instance masks and no segmenter is configured")
     timer = _Timer()
-    with timer("fusion"):
-        rec = mapping.fuse_tsdf(mapping_seq, config.fusion, progress)
+    inst = lift_instances(mapping_seq, config, segmenter if source == "segmenter" else None, progress, timer)
+    rec, obs, labels, sets = inst.reconstruction, inst.observations, inst.labels, inst.sets
     n = len(rec.points)
-    with timer("observation"):
-        obs = mapping.observe(
-            mapping_seq,
-            rec.points,
-            rec.usable,
-            config.observation,
-            segmenter if source == "segmenter" else None,
-            progress,
-        )
-    with timer("instances"):
-        if source == "masks":
-            labels = mapping.lift_by_voting(n, obs, config.instances.voting)
-        else:
-            labels = mapping.lift_by_clustering(rec.points, obs, config.instances.clustering)
-        sets = mapping.instance_sets(labels, config.instances.min_points)
-        labels = np.where(np.isin(labels, list(sets)), labels, 0)
     with timer("ground_truth"):
         gt_labels, reference = _reference_labels(
             mapping_seq, rec.points, obs, labels if source == "masks" else None, config
         )
         quality = None
         if gt_labels is not None:
-            quality = mapping.instance_quality(sets, mapping.instance_sets(gt_labels, config.instances.min_points))
-            quality["reference"] = reference
+            truth = mapping.instance_sets(gt_labels, config.instances.min_points)
+            quality = {**instance_report(rec.points, sets, truth), "reference": reference}
     with timer("reference_frames"):
         sightings = landmark_sightings(obs, labels, config.reference_frames)
         rfs = select_reference_frames(sightings, mapping_seq.poses, config.reference_frames)
@@ -174,6 +160,50 @@ def build_object_map(
         cfg_mod.to_dict(config),
         stats,
     )
+
+
+@dataclass
+class Instances:
+    """The scene cloud, what every frame sees of it, and its 3D instances."""
+
+    reconstruction: mapping.Reconstruction
+    observations: list[mapping.FrameObservation]
+    labels: np.ndarray
+    """(N,) instance id per scene point (0 = none); instances below ``min_points`` already removed."""
+    sets: dict[int, np.ndarray]
+    """Instance id -> its point indices."""
+
+
+def lift_instances(
+    mapping_seq: SceneSequence,
+    config: MappingConfig,
+    segmenter: Segmenter | None,
+    progress: bool = True,
+    timer: _Timer | None = None,
+) -> Instances:
+    """Fusion, observation and 3D instances: the dataset masks voted (no segmenter), or the segmenter's
+    masks clustered by view consensus and repaired (:mod:`instance_repair`)."""
+    timer = timer or _Timer()
+    with timer("fusion"):
+        rec = mapping.fuse_tsdf(mapping_seq, config.fusion, progress)
+    with timer("observation"):
+        obs = mapping.observe(mapping_seq, rec.points, rec.usable, config.observation, segmenter, progress)
+    with timer("instances"):
+        if segmenter is None:
+            labels = mapping.lift_by_voting(len(rec.points), obs, config.instances.voting)
+        else:
+            labels = mapping.lift_by_clustering(rec.points, obs, config.instances.clustering)
+            labels = repair_instances(
+                rec.points,
+                labels,
+                obs,
+                mapping_seq.poses[:, :3, 3],
+                config.instances.repair,
+                config.instances.clustering.min_mask_points,
+            )
+        sets = mapping.instance_sets(labels, config.instances.min_points)
+        labels = np.where(np.isin(labels, list(sets)), labels, 0)
+    return Instances(rec, obs, labels, sets)
 
 
 def _downsample(points: np.ndarray, voxel: float, cap: int, rng: np.random.Generator) -> np.ndarray:

@@ -42,6 +42,7 @@ from openreloc_bench.data import io
 from openreloc_bench.data.scene import ObjectInfo
 from openreloc_bench.data.types import SceneSequence
 from openreloc_bench.errors import DataError
+from openreloc_bench.openreloc.instance_repair import RepairConfig
 from openreloc_bench.vision.base import Segmenter
 
 log = logging.getLogger(__name__)
@@ -175,6 +176,8 @@ class InstanceConfig:
     box in ``objects.json`` (see :func:`box_point_labels`); ~1.5 fusion voxels absorbs surface noise."""
     voting: VotingConfig = field(default_factory=VotingConfig)
     clustering: ClusteringConfig = field(default_factory=ClusteringConfig)
+    repair: RepairConfig = field(default_factory=RepairConfig)
+    """Fill and merge of the clustered instances (segmenter masks only)."""
 
     def __post_init__(self) -> None:
         check_ranges(self, non_negative=("min_points", "gt_box_margin"))
@@ -204,6 +207,10 @@ class FrameObservation:
     """(M,) int32 dataset instance id under each seen point (0 = none), when the frame has masks."""
     masks: list[np.ndarray] = field(default_factory=list)
     """Per segmenter mask: indices into ``point_idx`` of the seen points inside it."""
+    boundary: np.ndarray | None = None
+    """(M,) float16 segmenter boundary strength at each seen point's pixel, with a segmenter."""
+    rgb: np.ndarray | None = None
+    """(M, 3) uint8 colour at each seen point's pixel, with a segmenter."""
 
 
 def _pose(seq: SceneSequence, i: int) -> np.ndarray:
@@ -323,8 +330,12 @@ def observe(
             gt_ids=None if inst is None else inst[pix[:, 1], pix[:, 0]].astype(np.int32),
         )
         if segmenter is not None:
-            for m in segmenter.segment(read_color(seq, int(i)), inst):
+            rgb = read_color(seq, int(i))
+            masks, boundary = segmenter.segment_with_boundaries(rgb, inst)
+            for m in masks:
                 fo.masks.append(np.flatnonzero(m.mask[pix[:, 1], pix[:, 0]]).astype(np.int32))
+            fo.boundary = boundary[pix[:, 1], pix[:, 0]].astype(np.float16)
+            fo.rgb = rgb[pix[:, 1], pix[:, 0]]
         obs.append(fo)
     return obs
 
@@ -630,29 +641,6 @@ def box_point_labels(points: np.ndarray, objects: dict[int, ObjectInfo], margin:
             best[idx] = volume[k]
             lab[idx] = ids[k]
     return np.where(lab_strict > 0, lab_strict, lab_loose)
-
-
-def instance_quality(
-    pred: dict[int, np.ndarray], gt: dict[int, np.ndarray], iou_threshold: float = 0.5
-) -> dict[str, float]:
-    """3D instance precision/recall: a prediction is correct when it has IoU >= threshold with a GT
-    instance (IoU > 0.5 makes the matching one-to-one, as in ScanNet instance evaluation)."""
-    n_pred, n_gt = len(pred), len(gt)
-    if not n_pred or not n_gt:
-        return {"precision": 0.0, "recall": 0.0, "n_pred": n_pred, "n_gt": n_gt, "iou_threshold": iou_threshold}
-    n_points = 1 + max(int(v.max(initial=0)) for v in (*pred.values(), *gt.values()))
-    P = _sets_matrix(list(pred.values()), n_points)
-    G = _sets_matrix(list(gt.values()), n_points)
-    inter = (P @ G.T).toarray()
-    union = np.asarray(P.sum(1)) + np.asarray(G.sum(1)).T - inter
-    hit = inter / np.maximum(union, 1) >= iou_threshold
-    return {
-        "precision": float(hit.any(axis=1).mean()),
-        "recall": float(hit.any(axis=0).mean()),
-        "n_pred": n_pred,
-        "n_gt": n_gt,
-        "iou_threshold": iou_threshold,
-    }
 
 
 def _sets_matrix(sets: list[np.ndarray], n_points: int) -> sp.csr_matrix:

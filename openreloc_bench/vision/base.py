@@ -68,6 +68,32 @@ class Segmenter(abc.ABC):
     def segment(self, rgb: np.ndarray, instance: np.ndarray | None = None) -> list[ObjectMask]:
         """RGB uint8 (H, W, 3) (+ dataset instance ids for the oracle tracks) -> object masks."""
 
+    def segment_with_boundaries(
+        self, rgb: np.ndarray, instance: np.ndarray | None = None
+    ) -> tuple[list[ObjectMask], np.ndarray]:
+        """The masks and a (H, W) float32 boundary strength in [0, 1] (mapping projects it onto the scene
+        cloud to judge where one 3D instance ends). Default: 1 on the masks' own borders, else 0;
+        segmenters that predict boundaries return their probabilities."""
+        masks = self.segment(rgb, instance)
+        return masks, mask_borders(masks, rgb.shape[:2])
+
+
+def mask_borders(masks: Sequence[ObjectMask], shape: tuple[int, int]) -> np.ndarray:
+    """(H, W) float32: 1 where a pixel and its right or lower neighbour lie in different masks (or one in
+    none), on both sides of the border; else 0."""
+    labels = np.zeros(shape, np.int32)
+    for k, m in enumerate(masks, start=1):
+        labels[m.mask & (labels == 0)] = k
+    edge = np.zeros(shape, bool)
+    for axis in (0, 1):
+        diff = np.diff(labels, axis=axis) != 0
+        lo = [slice(None)] * 2
+        hi = [slice(None)] * 2
+        lo[axis], hi[axis] = slice(None, -1), slice(1, None)
+        edge[tuple(lo)] |= diff
+        edge[tuple(hi)] |= diff
+    return edge.astype(np.float32)
+
 
 class Describer(abc.ABC):
     """Describes one object of an image in a short phrase, using the crop and its context."""

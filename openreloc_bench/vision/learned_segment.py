@@ -227,11 +227,17 @@ class LearnedSegmenter(Segmenter):
         return cv2.resize(prob, (W, H), interpolation=cv2.INTER_LINEAR) if (w, h) != (W, H) else prob
 
     def segment(self, rgb: np.ndarray, instance: np.ndarray | None = None) -> list[ObjectMask]:
+        return self.segment_with_boundaries(rgb, instance)[0]
+
+    def segment_with_boundaries(
+        self, rgb: np.ndarray, instance: np.ndarray | None = None
+    ) -> tuple[list[ObjectMask], np.ndarray]:
+        """The segments and the network's boundary probability they were cut from."""
         rgb = as_rgb_uint8(rgb)
         H, W = rgb.shape[:2]
         prob = self.boundary_probability(rgb)
         labels = segments_from_boundaries(prob, self.threshold, max(1, round(self.min_area_frac * H * W)))
-        return masks_from_labels(labels, prob)
+        return masks_from_labels(labels, prob), prob
 
 
 def segment_scores(labels: np.ndarray, prob: np.ndarray) -> np.ndarray:

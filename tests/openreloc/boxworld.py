@@ -81,14 +81,22 @@ def camera_poses(n: int, radius: float = 1.2, height: float = 1.4) -> list[np.nd
     return poses
 
 
-def write_boxworld(root: Path, n_frames: int = 16, hw: tuple[int, int] = (48, 64), boxes: list[Box] = ROOM) -> Path:
+def write_boxworld(
+    root: Path,
+    n_frames: int = 16,
+    hw: tuple[int, int] = (48, 64),
+    boxes: list[Box] = ROOM,
+    objects: list[Box] | None = None,
+) -> Path:
+    """A boxworld scene; ``objects`` (default: ``boxes``) are the true objects of ``objects.json``, so
+    one object can be rendered as several instance ids (parts a segmenter keeps apart)."""
     K = geometry.intrinsics_from_fov(hw[1], hw[0], 70.0)
     writer = SceneWriter(root)
     writer.write_scene_info({"spec_hash": "boxworld", "seed": 0, "width": hw[1], "height": hw[0]})
     writer.write_objects(
         [
             ObjectInfo(id=b.id, category=b.category, structural=b.structural, aabb=[list(b.lo), list(b.hi)])
-            for b in boxes
+            for b in (boxes if objects is None else objects)
         ]
     )
     writer.write_intrinsics("mapping", K)

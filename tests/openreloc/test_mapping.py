@@ -11,6 +11,7 @@ from openreloc_bench.data import io
 from openreloc_bench.data.scene import ObjectInfo, Scene
 from openreloc_bench.errors import DataError
 from openreloc_bench.openreloc import mapping as M
+from openreloc_bench.openreloc.instance_eval import instance_report
 from tests.openreloc.boxworld import ROOM, NoisyMaskSegmenter, boxworld_sequence
 
 FUSION = M.FusionConfig(voxel_size=0.05)
@@ -70,7 +71,7 @@ def test_clustering_of_noisy_masks_recovers_instances(room: tuple) -> None:
     _, rec, obs = room
     gt = M.instance_sets(M.lift_by_voting(len(rec.points), obs, M.VotingConfig()), 20)
     pred = M.instance_sets(M.lift_by_clustering(rec.points, obs, M.ClusteringConfig()), 20)
-    q = M.instance_quality(pred, gt)
+    q = instance_report(rec.points, pred, gt)
     assert q["recall"] >= 0.85 and q["precision"] >= 0.75, q
 
 
@@ -113,7 +114,7 @@ def test_undersegmented_masks_are_dropped(room: tuple) -> None:
     k = next(k for k, (_, m) in enumerate(masks) if m is merged)
     assert not keep[k] and keep.mean() > 0.8
     labels = M.lift_by_clustering(rec.points, obs2, cfg)
-    assert M.instance_quality(M.instance_sets(labels, 20), M.instance_sets(vote, 20))["recall"] >= 0.85
+    assert instance_report(rec.points, M.instance_sets(labels, 20), M.instance_sets(vote, 20))["recall"] >= 0.85
 
 
 def test_box_point_labels_prefer_the_smallest_box_and_absorb_surface_noise() -> None:
@@ -139,13 +140,6 @@ def test_instance_sets_groups_labels() -> None:
     assert set(sets) == {1, 3}
     np.testing.assert_array_equal(sets[3], [1, 3, 4])
     np.testing.assert_array_equal(sets[1], [2, 5])
-
-
-def test_instance_quality_counts_iou_matches() -> None:
-    gt = {1: np.arange(0, 100), 2: np.arange(100, 200)}
-    pred = {7: np.arange(0, 90), 8: np.arange(150, 300), 9: np.arange(300, 310)}
-    q = M.instance_quality(pred, gt)
-    assert q["precision"] == pytest.approx(1 / 3) and q["recall"] == pytest.approx(1 / 2)
 
 
 def test_frames_without_depth_are_skipped_and_reported(tmp_path: Path) -> None:

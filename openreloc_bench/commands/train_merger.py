@@ -1,0 +1,108 @@
+"""Train the instance merge classifier of the predicted track's maps on generated training scenes.
+
+Generates scenes from the seeds reserved for training (never a benchmark or validation scene),
+builds each one's instances from the segmenter's masks as mapping does (fusion, observation,
+view-consensus clustering, fill), labels every pair of touching instances from the scene's object
+boxes, and fits the logistic regression of ``openreloc/instance_repair.py``. ``--eval-scenes`` more,
+from a disjoint part of the range, give the card's held-out pair accuracy. The merge threshold is a
+mapping setting, chosen on the validation suite with ``openreloc-bench diagnose``. Writes a directory
+to use as ``--set mapping.instances.repair.merger=DIR``.
+
+  openreloc-bench train-merger --out weights/merger
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+from openreloc_bench.errors import ConfigError
+
+NAME = "train-merger"
+HELP = "train the predicted track's instance merge classifier on generated training scenes"
+ORDER = 62
+
+TRAIN_SEED_OFFSET = 300_000
+EVAL_SEED_OFFSET = 800_000
+"""Scene seeds TRAINING_SEED_MIN + offset + 1000 * seed + i: disjoint from the encoder's and the
+segmenter's training scenes."""
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--out", type=Path, required=True, help="directory to write (merger.json, manifest.json)")
+    p.add_argument("--seed", type=int, default=0, help="picks the scene seeds")
+    p.add_argument("--scenes", type=int, default=12, help="training scenes to generate")
+    p.add_argument("--eval-scenes", type=int, default=3, help="held-out scenes for the card's pair accuracy")
+    p.add_argument(
+        "--data", type=Path, default=None, help="scene folder (train/, eval/; generated when empty); default OUT/scenes"
+    )
+    p.add_argument("--segmenter", default="learned", help="segmenter whose masks the instances come from")
+    p.add_argument("--workers", type=int, default=2, help="parallel scene generation processes")
+
+
+def run(args: argparse.Namespace) -> int:
+    from openreloc_bench.data import io, paths
+    from openreloc_bench.openreloc.build import MappingConfig
+    from openreloc_bench.openreloc.instance_repair import FEATURES, fit_merger
+    from openreloc_bench.openreloc.merger_training import collect_examples, pair_accuracy
+    from openreloc_bench.vision import create_segmenter
+
+    for flag, value in (("--scenes", args.scenes), ("--eval-scenes", args.eval_scenes)):
+        if value < 1:
+            raise ConfigError(f"{flag} must be >= 1, got {value}")
+    segmenter = create_segmenter(args.segmenter)  # an unknown name fails before generating anything
+    data = args.data or args.out / "scenes"
+    config = MappingConfig()
+    with paths.directory_lock(args.out, "openreloc-bench train-merger"):
+        train_dirs, eval_dirs = _scene_dirs(data / "train"), _scene_dirs(data / "eval")
+        if not (train_dirs and eval_dirs):
+            from generators.spec import TRAINING_SEED_MIN
+
+            base = TRAINING_SEED_MIN + 1000 * args.seed
+            seeds = [base + TRAIN_SEED_OFFSET + i for i in range(args.scenes)]
+            train_dirs = _generate(data / "train", "train", seeds, args)
+            seeds = [base + EVAL_SEED_OFFSET + i for i in range(args.eval_scenes)]
+            eval_dirs = _generate(data / "eval", "eval", seeds, args)
+        t0 = time.time()
+        train = collect_examples(train_dirs, segmenter, config)
+        held = collect_examples(eval_dirs, segmenter, config)
+        if train.same.all() or not train.same.any():
+            raise ConfigError(f"the {len(train.same)} training pairs are all of one kind: generate more --scenes")
+        classifier = fit_merger(train.features, train.same)
+        threshold = config.instances.repair.merge_threshold
+        classifier.card = {
+            "segmenter": segmenter.config() if hasattr(segmenter, "config") else {"name": args.segmenter},
+            "train_seeds": [io.read_json(d / "scene.json").get("seed") for d in train_dirs],
+            "eval_seeds": [io.read_json(d / "scene.json").get("seed") for d in eval_dirs],
+            "train_pairs": int(len(train.same)),
+            "train_one_object": int(train.same.sum()),
+            "held_out": {"threshold": threshold, **pair_accuracy(classifier, held, threshold)},
+            "weights": {f: round(float(w), 4) for f, w in zip(FEATURES, classifier.weights)},
+            "seconds": round(time.time() - t0, 1),
+        }
+        classifier.save(args.out)
+    h = classifier.card["held_out"]
+    print(
+        f"{len(train.same)} training pairs ({int(train.same.sum())} one object); held-out at {threshold}: "
+        f"accuracy {h['accuracy']:.3f}, precision {h['precision']:.3f}, recall {h['recall']:.3f} "
+        f"({h['pairs']} pairs)"
+    )
+    print(f"wrote {args.out} (use --set mapping.instances.repair.merger={args.out})")
+    return 0
+
+
+def _scene_dirs(root: Path) -> list[Path]:
+    return sorted(p for p in root.iterdir() if (p / "scene.json").is_file()) if root.is_dir() else []
+
+
+def _generate(root: Path, prefix: str, seeds: list[int], args: argparse.Namespace) -> list[Path]:
+    try:
+        from generators.generate import generate_scenes, training_specs
+    except ImportError as e:
+        raise ConfigError(f"the scene generator is not available ({e}); pass --data with train/ and eval/") from None
+    specs = training_specs(
+        prefix, seeds, 640, 480, with_floors=True, objects_per_room=30, room_side_max=5.5, n_query=5, n_displaced=2
+    )
+    root.mkdir(parents=True, exist_ok=True)
+    return generate_scenes(specs, root, resume=True, workers=args.workers, desc=f"{prefix} scenes")

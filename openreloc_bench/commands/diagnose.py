@@ -1,0 +1,140 @@
+"""Measure OpenReLoc stage by stage on scenes with ground truth: where does a track lose?
+
+Per scene and pooled: query segmentation (mean best IoU, AP50, over- / under-segmentation, boundary
+F-score at 2 px), the map's 3D instance precision / recall at IoU 0.5 and 0.25 with every true
+object's error (found, split, merged, missed; by size), and, unless --no-localize, recall at 50 / 25
+cm and association precision over every query. --swap (predicted track) localizes again with the
+dataset's masks on one side, to tell which side costs more. A table goes to stderr, JSON to stdout;
+--out also writes diagnose.json and diagnose.md. Maps are built under --work and reused.
+
+  openreloc-bench diagnose --suite scenes/validation.yaml --data data/val --track predicted --work work/diag
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+from openreloc_bench.commands.options import add_method_config_arguments, method_overrides
+from openreloc_bench.errors import ConfigError
+
+NAME = "diagnose"
+HELP = "OpenReLoc's losses stage by stage (segmentation, 3D instances, association, poses)"
+ORDER = 42
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    where = p.add_mutually_exclusive_group(required=True)
+    where.add_argument("--scenes", help="comma-separated scene directories")
+    where.add_argument("--suite", type=Path, help="suite YAML whose scenes lie under --data")
+    p.add_argument("--data", type=Path, help="dataset directory of --suite")
+    p.add_argument("--track", default="predicted", choices=("predicted", "oracle-mask"), help="default: predicted")
+    p.add_argument("--splits", default="query", help="comma-separated query splits (default: query)")
+    p.add_argument("--frames", type=int, default=12, help="frames per split whose segmentation is scored (12)")
+    p.add_argument("--no-localize", action="store_true", help="segmentation and map only")
+    p.add_argument("--swap", action="store_true", help="also localize with the dataset's masks on one side")
+    p.add_argument("--work", type=Path, required=True, help="folder for the maps (reused while unchanged)")
+    p.add_argument("--out", type=Path, help="folder for diagnose.json and diagnose.md")
+    add_method_config_arguments(p)
+
+
+def run(args: argparse.Namespace) -> int:
+    from openreloc_bench import config as cfgmod
+    from openreloc_bench.data import io, paths
+    from openreloc_bench.harness.diagnose import DiagnoseOptions, diagnose_scene, pool
+
+    scene_dirs = _scene_dirs(args)
+    options = cfgmod.from_dict(
+        DiagnoseOptions,
+        {
+            "track": args.track,
+            "splits": tuple(s for s in args.splits.split(",") if s),
+            "frames": args.frames,
+            "localize": not args.no_localize,
+            "swap": args.swap,
+        },
+        "diagnose",
+    )
+    if options.frames < 1:
+        raise ConfigError(f"--frames must be >= 1, got {options.frames}")
+    for out in (args.work, args.out):
+        if out is not None:
+            paths.check_output(out, scene_dirs, "output folder")
+    overrides = method_overrides(args)
+    rows = [diagnose_scene(d, overrides, options, args.work) for d in scene_dirs]
+    result = {"track": options.track, "pooled": pool(rows), "scenes": rows}
+    result.update(_headline(result["pooled"]))
+    text = "\n".join(table(rows, result["pooled"]))
+    print(text, file=sys.stderr)
+    if args.out is not None:
+        args.out.mkdir(parents=True, exist_ok=True)
+        io.write_json(args.out / "diagnose.json", result)
+        (args.out / "diagnose.md").write_text(f"# diagnose ({options.track})\n\n```\n{text}\n```\n")
+    print(json.dumps(result, default=float))
+    return 0
+
+
+def _scene_dirs(args: argparse.Namespace) -> list[Path]:
+    if args.suite is not None:
+        from openreloc_bench.harness.suites import suite_scene_names
+
+        if args.data is None:
+            raise ConfigError("--suite needs --data (the folder holding its generated scenes)")
+        dirs = [args.data / n for n in suite_scene_names(args.suite)]
+    else:
+        dirs = [Path(s) for s in args.scenes.split(",") if s]
+    missing = [d for d in dirs if not (d / "scene.json").is_file()]
+    if missing:
+        raise ConfigError(f"no scene at {missing[0]} (generate it first: `openreloc-bench generate SUITE --out DIR`)")
+    if not dirs:
+        raise ConfigError("no scenes given")
+    return dirs
+
+
+def _headline(pooled: dict[str, Any]) -> dict[str, Any]:
+    """The numbers a script reads first: map precision / recall at IoU 0.5, first split's query IoU."""
+    m = pooled.get("map", {})
+    seg = next(iter(pooled.get("segmentation", {}).values()), {})
+    return {
+        "map_precision": m.get("precision"),
+        "map_recall": m.get("recall"),
+        "query_iou": seg.get("mean_best_iou"),
+    }
+
+
+def table(rows: list[dict[str, Any]], pooled: dict[str, Any]) -> list[str]:
+    """Printable lines: one per scene and a pooled one, per stage."""
+    from openreloc_bench.openreloc.instance_eval import OBJECT_ERRORS, SIZES
+
+    lines = [
+        f"{'scene':<10} {'map P/R@.5':>11} {'P/R@.25':>10} {'pred':>5} {'gt':>4}  objects found/split/merged/missed"
+    ]
+    for name, m in [(r["scene"], r["map"]) for r in rows] + [("pooled", pooled.get("map", {}))]:
+        if m:
+            o = m["objects"]
+            counts = "/".join(str(sum(o[e].values())) for e in ("found", "split", "merged", "missed"))
+            lines.append(
+                f"{name:<10} {m['precision']:5.2f}/{m['recall']:<5.2f} {m['precision_25']:4.2f}/{m['recall_25']:<5.2f}"
+                f" {m['n_pred']:5d} {m['n_gt']:4d}  {counts}"
+            )
+    o = pooled.get("map", {}).get("objects")
+    if o:
+        lines.append(
+            "pooled errors by size (small/medium/large): "
+            + "; ".join(f"{e} {[o[e][s] for s in SIZES]}" for e in OBJECT_ERRORS)
+        )
+    for split, s in pooled.get("segmentation", {}).items():
+        lines.append(
+            f"segmentation {split}: mean best IoU {s['mean_best_iou']:.3f}, AP50 {s['ap50']:.3f}, boundary F@2px "
+            f"{s['boundary_f']:.3f}, over {s['over_segmentation']:.3f}, under {s['under_segmentation']:.3f} ({s['objects']} objects)"
+        )
+    for label, block in [("localization", pooled.get("localization", {}))] + list(pooled.get("swap", {}).items()):
+        for split, s in block.items():
+            lines.append(
+                f"{label} {split}: R@50 {s['recall_50cm']:.1f}, R@25 {s['recall_25cm']:.1f}, association precision "
+                f"{s['association_precision']:.3f} ({s['accepted_matches']} matches, {s['queries']} queries)"
+            )
+    return lines

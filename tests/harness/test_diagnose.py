@@ -1,0 +1,74 @@
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from generators.generate import generate_scene
+from generators.spec import SceneSpec
+from openreloc_bench.cli import main
+from openreloc_bench.harness.diagnose import boundary_counts, boundary_f, pool
+
+TINY = dict(
+    width=320, height=240, objects_per_room=12, room_side_min=3.5, room_side_max=4.0, mapping_step_m=0.5,
+    mapping_step_deg=30.0, max_mapping_frames=16, n_query=3, n_displaced=1,
+)  # fmt: skip
+
+
+def test_boundary_f_is_one_on_the_truth_and_drops_with_a_shift() -> None:
+    truth = np.zeros((60, 80), np.int32)
+    truth[20:40, 20:50] = 1
+    assert boundary_f(boundary_counts(truth, truth, 2)) == 1.0
+    near, far = np.roll(truth, 1, axis=1), np.roll(truth, 6, axis=1)
+    assert boundary_f(boundary_counts(near, truth, 2)) == 1.0  # within the tolerance
+    assert boundary_f(boundary_counts(far, truth, 2)) < 0.6  # the side edges are 6 px off
+
+
+def test_pool_weights_scenes_by_their_objects_and_queries() -> None:
+    def row(name: str, p: float, n: int, r50: float, q: int) -> dict:
+        objects = {e: {"small": 0, "medium": 1, "large": 0} for e in ("found", "split", "merged", "missed")}
+        m = {"precision": p, "recall": p, "precision_25": p, "recall_25": p, "n_pred": n, "n_gt": n}
+        loc = {
+            "query": {
+                "queries": q,
+                "recall_50cm": r50,
+                "recall_25cm": r50,
+                "association_precision": 1.0,
+                "accepted_matches": 1,
+            }
+        }
+        return {"scene": name, "map": {**m, "objects": objects, "instances": {"matched": n}}, "localization": loc}
+
+    pooled = pool([row("a", 1.0, 10, 100.0, 10), row("b", 0.0, 30, 0.0, 30)])
+    assert pooled["map"]["precision"] == pytest.approx(0.25) and pooled["map"]["objects"]["found"]["medium"] == 2
+    assert pooled["localization"]["query"]["recall_50cm"] == pytest.approx(25.0)
+
+
+@pytest.fixture(scope="module")
+def scene(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return generate_scene(SceneSpec(name="room", seed=7, **TINY), tmp_path_factory.mktemp("diag"), progress=False)
+
+
+def test_diagnose_measures_every_stage(scene: Path, tmp_path: Path, capsys) -> None:
+    argv = ["diagnose", "--scenes", str(scene), "--work", str(tmp_path / "w"), "--out", str(tmp_path / "o"), "--swap"]
+    assert main(argv) == 0
+    captured = capsys.readouterr()
+    result = json.loads(captured.out.strip().splitlines()[-1])
+    assert 0 <= result["map_precision"] <= 1 and 0 <= result["map_recall"] <= 1 and 0 < result["query_iou"] <= 1
+    pooled = result["pooled"]
+    assert set(pooled["swap"]) == {"dataset map + predicted queries", "predicted map + dataset queries"}
+    assert pooled["localization"]["query"]["queries"] == 3
+    assert "map P/R@.5" in captured.err and (tmp_path / "o" / "diagnose.md").is_file()
+    # maps are reused while their config is unchanged
+    marker = next((tmp_path / "w" / "maps" / "room").glob("predicted.done.json"))
+    before = marker.stat().st_mtime_ns
+    assert main([*argv, "--no-localize"]) == 0
+    assert marker.stat().st_mtime_ns == before
+
+
+def test_diagnose_refuses_a_missing_scene(tmp_path: Path, capsys) -> None:
+    assert main(["diagnose", "--scenes", str(tmp_path / "nope"), "--work", str(tmp_path / "w")]) == 2
+    err = capsys.readouterr().err
+    assert "no scene at" in err and "Traceback" not in err

@@ -67,6 +67,18 @@ def test_observation_discards_occluded_points(room: tuple) -> None:
     assert len(o.point_idx) < 0.5 * len(rec.points)
 
 
+def test_observation_keeps_the_segmenters_boundaries_and_colours_at_seen_pixels(room: tuple) -> None:
+    seq, _, obs = room
+    o = obs[3]
+    rgb = M.read_color(seq, o.index)
+    np.testing.assert_array_equal(o.rgb, rgb[o.uv[:, 1], o.uv[:, 0]])
+    assert o.boundary.shape == o.point_idx.shape and set(np.unique(o.boundary)) <= {0.0, 1.0}
+    assert 0 < o.boundary.mean() < 0.5  # mask borders only
+    rec = room[1]
+    blind = M.observe(seq, rec.points, rec.usable, M.ObservationConfig(), None, progress=False)[3]
+    assert blind.boundary is None and blind.rgb is None and not blind.masks
+
+
 def test_clustering_of_noisy_masks_recovers_instances(room: tuple) -> None:
     _, rec, obs = room
     gt = M.instance_sets(M.lift_by_voting(len(rec.points), obs, M.VotingConfig()), 20)

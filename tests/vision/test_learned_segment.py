@@ -83,6 +83,14 @@ def test_segmenter_loads_weights_and_returns_a_partition(weights: Path) -> None:
     assert seg.config()["card"] == "test" and seg.threshold == 0.5
 
 
+def test_boundaries_are_the_probabilities_the_segments_were_cut_from(weights: Path) -> None:
+    seg = create_segmenter("learned", weights=str(weights), threads=1)
+    rgb = np.random.default_rng(1).integers(0, 255, (48, 100, 3), dtype=np.uint8)
+    masks, prob = seg.segment_with_boundaries(rgb)
+    np.testing.assert_array_equal(prob, seg.boundary_probability(rgb))
+    assert [m.mask.tolist() for m in masks] == [m.mask.tolist() for m in seg.segment(rgb)]
+
+
 @pytest.mark.parametrize(
     ("damage", "message"),
     [

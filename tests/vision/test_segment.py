@@ -113,3 +113,14 @@ def test_graph_segmenter_is_deterministic() -> None:
     seg = create_segmenter("graph")
     a, b = seg.segment(img), seg.segment(img)
     assert len(a) == len(b) and all(np.array_equal(x.mask, y.mask) for x, y in zip(a, b))
+
+
+def test_default_boundaries_are_the_masks_own_borders() -> None:
+    inst = np.zeros((6, 8), np.int32)
+    inst[1:4, 2:5] = 7
+    masks, border = create_segmenter("gt", min_area=1).segment_with_boundaries(np.zeros((6, 8, 3), np.uint8), inst)
+    assert len(masks) == 1 and border.dtype == np.float32
+    inside, outside = masks[0].mask, ~masks[0].mask
+    assert border[2, 3] == 0 and border[0, 0] == 0  # deep inside, far outside
+    assert border[1, 2] == 1 and border[1, 1] == 1  # both sides of the mask's edge
+    assert border[inside].sum() == 8 and border[outside].sum() == 12

@@ -15,10 +15,13 @@ on the validation apartments most clusters are pieces of one object. Two steps r
    segmenter's boundary strength along the border averaged over every view, the border's shape
    (normals, convex or concave), colour, and the two instances' sizes. The classifier is a logistic
    regression trained on training-range scenes, where the true instances are free
-   (:func:`train_merger`); rounds of merging and filling repeat until nothing changes.
+   (:mod:`merger_training`, ``train-merger``); rounds of merging and filling repeat until nothing
+   changes. Off by default: on the validation apartments it raised instance precision but joined
+   objects that localization needs apart (``docs/experiments.md``).
 
-A split step for touching objects merged wrongly is not here: on the validation apartments wrong
-merges are a tenth of the errors (``openreloc-bench diagnose`` counts them).
+Measured with ``openreloc-bench diagnose``: after fill, objects merged into a neighbour (mostly small
+ones the segmenter never separates from their support) are the largest error; a split step would need
+evidence the masks do not give.
 """
 
 from __future__ import annotations
@@ -73,8 +76,10 @@ class RepairConfig:
     """A mask votes for an instance when this share of its clustered points belong to it."""
     fill_share: float = 0.5
     """A point joins an instance when at least this share of the masks holding it vote for it."""
-    merge: bool = True
-    """Join touching instances the merge classifier calls one object."""
+    merge: bool = False
+    """Join touching instances the merge classifier calls one object. Off: on the validation
+    apartments it raised the map's instance precision (0.41 -> 0.61 after fill) but merged objects
+    that localization needs apart (R@50 42.0 -> 36.0; docs/experiments.md)."""
     merge_threshold: float = 0.85
     """...when its probability is above this."""
     merge_rounds: int = 12

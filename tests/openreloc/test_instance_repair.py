@@ -130,5 +130,10 @@ def test_repair_needs_boundaries_to_merge(shelf_in_parts: Path) -> None:
         o.boundary = None
     with pytest.raises(ValueError, match="boundary"):
         R.repair_instances(
-            inst.reconstruction.points, inst.labels, inst.observations, seq.poses[:, :3, 3], R.RepairConfig(), 10
+            inst.reconstruction.points,
+            inst.labels,
+            inst.observations,
+            seq.poses[:, :3, 3],
+            R.RepairConfig(merge=True),
+            10,
         )

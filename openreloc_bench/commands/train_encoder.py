@@ -32,6 +32,8 @@ HELP = "train the offline image encoder (aligned to frozen MiniLM) on generated 
 ORDER = 60
 
 CROP_SPLITS = ("mapping", "query", "query_light1", "query_light2", "query_light3", "query_light4")
+SCENE_SPEC = dict(max_mapping_frames=24, n_query=8, n_displaced=0)
+"""Training scenes: crops come from a few frames of each."""
 EVAL_SEED_OFFSET = 500_000
 """Eval scenes use seeds TRAINING_SEED_MIN + EVAL_SEED_OFFSET + ..., disjoint from the training range."""
 
@@ -82,23 +84,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def _scene_dirs(root: Path) -> list[Path]:
-    return sorted(p for p in root.iterdir() if (p / "scene.json").is_file()) if root.is_dir() else []
-
-
-def _generate(root: Path, prefix: str, seeds: list[int], args: argparse.Namespace) -> list[Path]:
-    """Generate (or finish) one scene per reserved seed, in spawned processes."""
-    try:
-        from generators.generate import generate_scenes, training_specs
-    except ImportError as e:
-        raise ConfigError(
-            f"the scene generator is not available ({e}); pass --data with train/ and eval/ scenes"
-        ) from None
-    specs = training_specs(prefix, seeds, args.width, args.height, max_mapping_frames=24, n_query=8, n_displaced=0)
-    root.mkdir(parents=True, exist_ok=True)
-    return generate_scenes(specs, root, resume=True, workers=args.workers, desc=f"{prefix} scenes")
-
-
 def _check_numbers(args: argparse.Namespace) -> None:
     """One-line errors for flags out of range, before any scene is generated or crop cut."""
     at_least = {
@@ -136,6 +121,7 @@ def _train(args: argparse.Namespace, device: torch.device) -> int:
     from openreloc_bench import config as cfgmod
     from openreloc_bench.data import io
     from openreloc_bench.data.scene import check_scene_info
+    from openreloc_bench.harness.suites import scene_dirs, training_scenes
     from openreloc_bench.vision import create_segmenter, segmenter_fingerprint
     from openreloc_bench.vision import vocabulary as voc
     from openreloc_bench.vision.crops import CropSet, crops_from_scenes
@@ -144,7 +130,7 @@ def _train(args: argparse.Namespace, device: torch.device) -> int:
 
     torch.set_num_threads(args.threads)
     data = args.data or args.out / "scenes"
-    train_dirs, eval_dirs = _scene_dirs(data / "train"), _scene_dirs(data / "eval")
+    train_dirs, eval_dirs = scene_dirs(data / "train"), scene_dirs(data / "eval")
     generated = not (train_dirs and eval_dirs)
     if generated:
         from generators.spec import TRAINING_SEED_MIN
@@ -153,8 +139,12 @@ def _train(args: argparse.Namespace, device: torch.device) -> int:
         train_seeds = [base + i for i in range(args.scenes)]
         eval_seeds = [TRAINING_SEED_MIN + EVAL_SEED_OFFSET + 1000 * args.seed + i for i in range(args.eval_scenes)]
         t0 = time.time()
-        train_dirs = _generate(data / "train", "train", train_seeds, args)
-        eval_dirs = _generate(data / "eval", "eval", eval_seeds, args)
+        train_dirs = training_scenes(
+            data / "train", "train", train_seeds, args.width, args.height, args.workers, **SCENE_SPEC
+        )
+        eval_dirs = training_scenes(
+            data / "eval", "eval", eval_seeds, args.width, args.height, args.workers, **SCENE_SPEC
+        )
         print(f"generated {len(train_dirs) + len(eval_dirs)} scenes in {time.time() - t0:.0f} s", flush=True)
     infos = {d: check_scene_info(io.read_json(d / "scene.json"), d / "scene.json") for d in train_dirs + eval_dirs}
     train_seeds = [infos[d].get("seed") for d in train_dirs]

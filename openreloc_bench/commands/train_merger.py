@@ -27,6 +27,8 @@ TRAIN_SEED_OFFSET = 300_000
 EVAL_SEED_OFFSET = 800_000
 """Scene seeds TRAINING_SEED_MIN + offset + 1000 * seed + i: disjoint from the encoder's and the
 segmenter's training scenes."""
+SCENE_SPEC = dict(with_floors=True, objects_per_room=30, room_side_max=5.5, n_query=5, n_displaced=2)
+"""Scenes as dense as the benchmark suites' (their mapping paths whole); queries are not used."""
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -43,6 +45,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from openreloc_bench.data import io, paths
+    from openreloc_bench.harness.suites import scene_dirs, training_scenes
     from openreloc_bench.openreloc.build import MappingConfig
     from openreloc_bench.openreloc.instance_repair import FEATURES, fit_merger
     from openreloc_bench.openreloc.merger_training import collect_examples, pair_accuracy
@@ -55,15 +58,15 @@ def run(args: argparse.Namespace) -> int:
     data = args.data or args.out / "scenes"
     config = MappingConfig()
     with paths.directory_lock(args.out, "openreloc-bench train-merger"):
-        train_dirs, eval_dirs = _scene_dirs(data / "train"), _scene_dirs(data / "eval")
+        train_dirs, eval_dirs = scene_dirs(data / "train"), scene_dirs(data / "eval")
         if not (train_dirs and eval_dirs):
             from generators.spec import TRAINING_SEED_MIN
 
             base = TRAINING_SEED_MIN + 1000 * args.seed
             seeds = [base + TRAIN_SEED_OFFSET + i for i in range(args.scenes)]
-            train_dirs = _generate(data / "train", "train", seeds, args)
+            train_dirs = training_scenes(data / "train", "train", seeds, 640, 480, args.workers, **SCENE_SPEC)
             seeds = [base + EVAL_SEED_OFFSET + i for i in range(args.eval_scenes)]
-            eval_dirs = _generate(data / "eval", "eval", seeds, args)
+            eval_dirs = training_scenes(data / "eval", "eval", seeds, 640, 480, args.workers, **SCENE_SPEC)
         t0 = time.time()
         train = collect_examples(train_dirs, segmenter, config)
         held = collect_examples(eval_dirs, segmenter, config)
@@ -90,19 +93,3 @@ def run(args: argparse.Namespace) -> int:
     )
     print(f"wrote {args.out} (use --set mapping.instances.repair.merger={args.out})")
     return 0
-
-
-def _scene_dirs(root: Path) -> list[Path]:
-    return sorted(p for p in root.iterdir() if (p / "scene.json").is_file()) if root.is_dir() else []
-
-
-def _generate(root: Path, prefix: str, seeds: list[int], args: argparse.Namespace) -> list[Path]:
-    try:
-        from generators.generate import generate_scenes, training_specs
-    except ImportError as e:
-        raise ConfigError(f"the scene generator is not available ({e}); pass --data with train/ and eval/") from None
-    specs = training_specs(
-        prefix, seeds, 640, 480, with_floors=True, objects_per_room=30, room_side_max=5.5, n_query=5, n_displaced=2
-    )
-    root.mkdir(parents=True, exist_ok=True)
-    return generate_scenes(specs, root, resume=True, workers=args.workers, desc=f"{prefix} scenes")

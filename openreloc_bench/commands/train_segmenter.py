@@ -27,6 +27,8 @@ TRAIN_SEED_OFFSET = 200_000
 EVAL_SEED_OFFSET = 700_000
 """Training scenes use seeds TRAINING_SEED_MIN + TRAIN_SEED_OFFSET + 1000 * seed + i, evaluation scenes
 TRAINING_SEED_MIN + EVAL_SEED_OFFSET + ...: disjoint from each other and from the encoder's scenes."""
+SCENE_SPEC = dict(with_floors=True, max_mapping_frames=30, n_query=10, n_displaced=3)
+"""Training scenes: a few frames of every split per scene (frames are sampled per split)."""
 THRESHOLDS = (0.05, 0.1, 0.2, 0.3, 0.4, 0.5)
 
 
@@ -51,22 +53,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
 
 
-def _scene_dirs(root: Path) -> list[Path]:
-    return sorted(p for p in root.iterdir() if (p / "scene.json").is_file()) if root.is_dir() else []
-
-
-def _generate(root: Path, prefix: str, seeds: list[int], args: argparse.Namespace) -> list[Path]:
-    try:
-        from generators.generate import generate_scenes, training_specs
-    except ImportError as e:
-        raise ConfigError(f"the scene generator is not available ({e}); pass --data with train/ and eval/") from None
-    specs = training_specs(
-        prefix, seeds, args.width, args.height, with_floors=True, max_mapping_frames=30, n_query=10, n_displaced=3
-    )
-    root.mkdir(parents=True, exist_ok=True)
-    return generate_scenes(specs, root, resume=True, workers=args.workers, desc=f"{prefix} scenes")
-
-
 def run(args: argparse.Namespace) -> int:
     # heavy imports here: the CLI imports every command module at start-up
     import numpy as np
@@ -74,6 +60,7 @@ def run(args: argparse.Namespace) -> int:
 
     from openreloc_bench import config as cfgmod
     from openreloc_bench.data import io, paths
+    from openreloc_bench.harness.suites import scene_dirs, training_scenes
     from openreloc_bench.vision.learned_segment import NetConfig, save_weights
     from openreloc_bench.vision.segmenter_training import (
         SegTrainConfig,
@@ -100,16 +87,18 @@ def run(args: argparse.Namespace) -> int:
     net_cfg = NetConfig()
     data = args.data or args.out / "scenes"
     with paths.directory_lock(args.out, "openreloc-bench train-segmenter"):
-        train_dirs, eval_dirs = _scene_dirs(data / "train"), _scene_dirs(data / "eval")
+        train_dirs, eval_dirs = scene_dirs(data / "train"), scene_dirs(data / "eval")
         if not (train_dirs and eval_dirs):
             from generators.spec import TRAINING_SEED_MIN
 
             base = TRAINING_SEED_MIN + 1000 * args.seed
-            train_dirs = _generate(
-                data / "train", "train", [base + TRAIN_SEED_OFFSET + i for i in range(args.scenes)], args
+            seeds = [base + TRAIN_SEED_OFFSET + i for i in range(args.scenes)]
+            train_dirs = training_scenes(
+                data / "train", "train", seeds, args.width, args.height, args.workers, **SCENE_SPEC
             )
-            eval_dirs = _generate(
-                data / "eval", "eval", [base + EVAL_SEED_OFFSET + i for i in range(args.eval_scenes)], args
+            seeds = [base + EVAL_SEED_OFFSET + i for i in range(args.eval_scenes)]
+            eval_dirs = training_scenes(
+                data / "eval", "eval", seeds, args.width, args.height, args.workers, **SCENE_SPEC
             )
         seeds = {
             name: [io.read_json(d / "scene.json").get("seed") for d in dirs]

@@ -72,3 +72,24 @@ def test_diagnose_refuses_a_missing_scene(tmp_path: Path, capsys) -> None:
     assert main(["diagnose", "--scenes", str(tmp_path / "nope"), "--work", str(tmp_path / "w")]) == 2
     err = capsys.readouterr().err
     assert "no scene at" in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        ([], "--suite needs --data"),
+        (["--data", "DATA"], "no scene at"),
+        (["--data", "DATA", "--frames", "0"], "no scene at"),
+    ],
+)
+def test_diagnose_suite_form_needs_its_generated_scenes(tmp_path: Path, capsys, extra: list[str], message: str) -> None:
+    suite = Path(__file__).resolve().parents[2] / "scenes" / "smoke.yaml"
+    argv = ["diagnose", "--suite", str(suite), "--work", str(tmp_path / "w")]
+    assert main(argv + [str(tmp_path) if e == "DATA" else e for e in extra]) == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err
+
+
+def test_diagnose_refuses_zero_frames(scene: Path, tmp_path: Path, capsys) -> None:
+    assert main(["diagnose", "--scenes", str(scene), "--work", str(tmp_path / "w"), "--frames", "0"]) == 2
+    assert "--frames must be >= 1" in capsys.readouterr().err

@@ -18,7 +18,8 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-import scipy.sparse as sp
+
+from openreloc_bench.openreloc.incidence import sets_matrix
 
 SIZE_BINS_M = (0.5, 1.5)
 SIZES = ("small", "medium", "large")
@@ -29,7 +30,7 @@ INSTANCE_ERRORS = ("matched", "fragment", "merge", "background")
 def instance_report(points: np.ndarray, pred: dict[int, np.ndarray], truth: dict[int, np.ndarray]) -> dict[str, Any]:
     """Precision / recall at IoU 0.5 and 0.25 and the error classes above (counts per size)."""
     n = len(points)
-    P, G = _sets_matrix(list(pred.values()), n), _sets_matrix(list(truth.values()), n)
+    P, G = sets_matrix(list(pred.values()), n), sets_matrix(list(truth.values()), n)
     inter = (P @ G.T).toarray()
     p_size = np.asarray(P.sum(axis=1)).ravel()
     g_size = np.asarray(G.sum(axis=1)).ravel()
@@ -72,11 +73,3 @@ def _object_error(iou: np.ndarray, inter: np.ndarray, p_size: np.ndarray, g_size
     if inter.max() >= 0.5 * g_size:
         return "merged"
     return "missed"
-
-
-def _sets_matrix(sets: list[np.ndarray], n_points: int) -> sp.csr_matrix:
-    rows = np.concatenate([np.full(len(s), i) for i, s in enumerate(sets)] or [np.zeros(0, np.int64)])
-    cols = np.concatenate(sets or [np.zeros(0, np.int64)])
-    m = sp.csr_matrix((np.ones(len(rows), np.float32), (rows, cols)), shape=(len(sets), n_points))
-    m.data[:] = 1.0
-    return m

@@ -39,6 +39,7 @@ from scipy.spatial import cKDTree
 from openreloc_bench.config import check_ranges
 from openreloc_bench.data import mapfile
 from openreloc_bench.errors import DataError
+from openreloc_bench.openreloc.incidence import ViewEvidence, incidence, view_evidence
 
 MERGER_FORMAT = ("openreloc-merger", 1)
 MERGER_FILE = "merger.json"
@@ -114,37 +115,6 @@ class PointAttributes:
     """(N, 3) unit normals, facing a camera that saw the point."""
 
 
-@dataclass
-class ViewEvidence:
-    """The masks of every view as sparse incidences over the scene points."""
-
-    masks: sp.csr_matrix
-    """(masks x points) 1 where a mask holds a point."""
-    mask_frame: np.ndarray
-    """(masks,) the observation each mask belongs to."""
-    seen: sp.csr_matrix
-    """(observations x points) 1 where a frame sees a point."""
-
-
-def view_evidence(n_points: int, obs: list, min_mask_points: int) -> ViewEvidence:
-    """Incidence matrices of the masks (at least ``min_mask_points`` seen points) and of what is seen."""
-    rows, cols, frame_of = [], [], []
-    for f, o in enumerate(obs):
-        for m in o.masks:
-            if len(m) >= min_mask_points:
-                rows.append(np.full(len(m), len(frame_of)))
-                cols.append(o.point_idx[m])
-                frame_of.append(f)
-    empty = np.zeros(0, np.int64)
-    masks = _incidence(np.concatenate(rows or [empty]), np.concatenate(cols or [empty]), (len(frame_of), n_points))
-    seen = _incidence(
-        np.concatenate([np.full(len(o.point_idx), f) for f, o in enumerate(obs)] or [empty]),
-        np.concatenate([o.point_idx for o in obs] or [empty]),
-        (len(obs), n_points),
-    )
-    return ViewEvidence(masks, np.array(frame_of, np.int64), seen)
-
-
 def point_attributes(points: np.ndarray, obs: list, camera_centres: np.ndarray) -> PointAttributes:
     """Boundary strength and colour averaged over the views (observations need ``boundary`` and ``rgb``),
     and normals from 16 neighbours, oriented towards a camera that saw the point."""
@@ -178,7 +148,7 @@ def fill_from_masks(
     best = np.asarray(per_mask.argmax(axis=1)).ravel()
     top = np.asarray(per_mask.max(axis=1).todense()).ravel()
     votes_for = np.flatnonzero((total > 0) & (top >= purity * total))
-    vote = _incidence(votes_for, best[votes_for], (len(total), len(ids)))
+    vote = incidence(votes_for, best[votes_for], (len(total), len(ids)))
     votes = (views.masks.T @ vote).tocsr()  # points x instances
     held = np.asarray(views.masks.sum(axis=0)).ravel()
     most = np.asarray(votes.max(axis=1).todense()).ravel()
@@ -273,7 +243,7 @@ def _mask_support(
     held = (views.masks @ onehot).tocoo()  # masks x instances
     in_view = np.asarray(seen[views.mask_frame[held.row], held.col]).ravel()
     ok = (held.data >= cfg.hold_share * in_view) & (in_view >= cfg.min_seen)
-    H = _incidence(held.row[ok], held.col[ok], held.shape)
+    H = incidence(held.row[ok], held.col[ok], held.shape)
     visible = seen.copy()
     visible.data = (visible.data >= cfg.min_seen).astype(np.float32)
     visible.eliminate_zeros()
@@ -421,10 +391,4 @@ def _onehot(labels: np.ndarray) -> tuple[sp.csr_matrix, np.ndarray]:
     """(points x instances) incidence of the labelled points, and the instance ids of its columns."""
     fg = np.flatnonzero(labels > 0)
     ids, col = np.unique(labels[fg], return_inverse=True)
-    return _incidence(fg, col.ravel(), (len(labels), len(ids))), ids
-
-
-def _incidence(rows: np.ndarray, cols: np.ndarray, shape: tuple[int, int]) -> sp.csr_matrix:
-    m = sp.csr_matrix((np.ones(len(rows), np.float32), (rows, cols)), shape=shape)
-    m.data[:] = 1.0
-    return m
+    return incidence(fg, col.ravel(), (len(labels), len(ids))), ids

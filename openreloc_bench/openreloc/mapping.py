@@ -42,6 +42,7 @@ from openreloc_bench.data import io
 from openreloc_bench.data.scene import ObjectInfo
 from openreloc_bench.data.types import SceneSequence
 from openreloc_bench.errors import DataError
+from openreloc_bench.openreloc.incidence import incidence, sets_matrix, view_evidence
 from openreloc_bench.openreloc.instance_repair import RepairConfig
 from openreloc_bench.vision.base import Segmenter
 
@@ -425,26 +426,14 @@ def lift_by_clustering(points: np.ndarray, obs: list[FrameObservation], cfg: Clu
     enough of the cluster's frames, split spatially disconnected parts, drop clusters nested in others.
     """
     n_points = len(points)
-    rows, cols, frame_of = [], [], []
-    for f, o in enumerate(obs):
-        for m in o.masks:
-            if len(m) >= cfg.min_mask_points:
-                rows.append(np.full(len(m), len(frame_of)))
-                cols.append(o.point_idx[m])
-                frame_of.append(f)
-    if not frame_of:
+    views = view_evidence(n_points, obs, cfg.min_mask_points)
+    n_masks = len(views.mask_frame)
+    if not n_masks:
         return np.zeros(n_points, np.int64)
-    mask_frame = np.array(frame_of)
-    M = _incidence(np.concatenate(rows), np.concatenate(cols), (len(frame_of), n_points))
-    seen = _incidence(
-        np.concatenate([np.full(len(o.point_idx), f) for f, o in enumerate(obs)]),
-        np.concatenate([o.point_idx for o in obs]),
-        (len(obs), n_points),
-    )
-    visible, contained, keep = _mask_frame_stats(M, mask_frame, len(obs), cfg)
+    visible, contained, keep = _mask_frame_stats(views.masks, views.mask_frame, len(obs), cfg)
     groups, visible = _merge_nodes(visible[keep], contained[keep], cfg)
-    groups = groups @ _incidence(np.arange(keep.sum()), np.flatnonzero(keep), (int(keep.sum()), len(frame_of)))
-    return _cluster_points(points, groups.tocsr(), visible.tocsr(), M, seen, cfg)
+    groups = groups @ incidence(np.arange(keep.sum()), np.flatnonzero(keep), (int(keep.sum()), n_masks))
+    return _cluster_points(points, groups.tocsr(), visible.tocsr(), views.masks, views.seen, cfg)
 
 
 def _mask_frame_stats(
@@ -458,7 +447,7 @@ def _mask_frame_stats(
     (a frame that splits m neither observes nor supports it).
     """
     n_masks = M.shape[0]
-    frame_ind = _incidence(mask_frame, np.arange(n_masks), (n_frames, n_masks))
+    frame_ind = incidence(mask_frame, np.arange(n_masks), (n_frames, n_masks))
     per_frame = (frame_ind @ M).tocsc()
     per_frame.data = (per_frame.data > 1).astype(np.float32)  # >1 mask of one frame holds the point
     boundary = np.asarray(per_frame.max(axis=0).todense()).ravel() > 0
@@ -479,8 +468,8 @@ def _mask_frame_stats(
     n_split = np.bincount(gm[vis & ~con], minlength=n_masks)
     under = (n_vis == 0) | (n_split > cfg.undersegment_share * n_vis)
     con &= ~under[gk]  # an under-segmented mask neither observes nor supports the masks it holds
-    visible = _incidence(gm[con], gf[con], (n_masks, n_frames))
-    contained = _incidence(gm[con], gk[con], (n_masks, n_masks))
+    visible = incidence(gm[con], gf[con], (n_masks, n_frames))
+    contained = incidence(gm[con], gk[con], (n_masks, n_masks))
     return visible, contained, ~under
 
 
@@ -519,7 +508,7 @@ def _merge_nodes(
             continue
         link = sp.coo_matrix((np.ones(int(ok.sum())), (observers.row[ok], observers.col[ok])), shape=observers.shape)
         n_comp, comp = connected_components(link, directed=False)
-        merge = _incidence(comp, np.arange(len(comp)), (n_comp, len(comp)))
+        merge = incidence(comp, np.arange(len(comp)), (n_comp, len(comp)))
         groups = _binary(merge @ groups)
         visible = _binary(merge @ visible)
         contained = _binary(merge @ contained)
@@ -582,7 +571,7 @@ def _drop_nested(objects: list[tuple[np.ndarray, np.ndarray]], share: float) -> 
     if len(objects) < 2:
         return objects
     n_points = 1 + max(int(o[0].max(initial=0)) for o in objects)
-    A = _sets_matrix([o[0] for o in objects], n_points)
+    A = sets_matrix([o[0] for o in objects], n_points)
     inter = (A @ A.T).tocoo()
     size = np.array([len(o[0]) for o in objects])
     i, j, n = inter.row, inter.col, inter.data
@@ -594,12 +583,6 @@ def _drop_nested(objects: list[tuple[np.ndarray, np.ndarray]], share: float) -> 
 def _binary(m: sp.spmatrix) -> sp.csr_matrix:
     m = sp.csr_matrix(m, dtype=np.float32)
     m.data[:] = 1.0
-    return m
-
-
-def _incidence(rows: np.ndarray, cols: np.ndarray, shape: tuple[int, int]) -> sp.csr_matrix:
-    m = sp.csr_matrix((np.ones(len(rows), np.float32), (rows, cols)), shape=shape)
-    m.data[:] = 1.0  # duplicates collapse to 1
     return m
 
 
@@ -641,8 +624,3 @@ def box_point_labels(points: np.ndarray, objects: dict[int, ObjectInfo], margin:
             best[idx] = volume[k]
             lab[idx] = ids[k]
     return np.where(lab_strict > 0, lab_strict, lab_loose)
-
-
-def _sets_matrix(sets: list[np.ndarray], n_points: int) -> sp.csr_matrix:
-    rows = np.concatenate([np.full(len(s), i) for i, s in enumerate(sets)])
-    return _incidence(rows, np.concatenate(sets), (len(sets), n_points))

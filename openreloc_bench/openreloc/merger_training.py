@@ -21,6 +21,7 @@ from openreloc_bench.errors import DataError
 from openreloc_bench.openreloc import instance_repair as repair
 from openreloc_bench.openreloc import mapping
 from openreloc_bench.openreloc.build import MappingConfig, lift_instances
+from openreloc_bench.openreloc.incidence import view_evidence
 from openreloc_bench.vision.base import Segmenter
 
 
@@ -75,7 +76,7 @@ def scene_examples(scene_dir: Path, segmenter: Segmenter, config: MappingConfig)
     inst = lift_instances(seq, cfg, segmenter, progress=False)
     points, obs = inst.reconstruction.points, inst.observations
     rc = config.instances.repair
-    views = repair.view_evidence(len(points), obs, config.instances.clustering.min_mask_points)
+    views = view_evidence(len(points), obs, config.instances.clustering.min_mask_points)
     labels = repair.fill_from_masks(inst.labels, views, rc.fill_purity, rc.fill_share) if rc.fill else inst.labels
     attrs = repair.point_attributes(points, obs, seq.poses[:, :3, 3])
     neighbours = cKDTree(points).query_pairs(rc.contact_radius, output_type="ndarray")

@@ -11,6 +11,7 @@ from openreloc_bench.errors import DataError
 from openreloc_bench.openreloc import instance_repair as R
 from openreloc_bench.openreloc import mapping as M
 from openreloc_bench.openreloc.build import MappingConfig, lift_instances
+from openreloc_bench.openreloc.incidence import view_evidence
 from openreloc_bench.openreloc.instance_eval import instance_report
 from openreloc_bench.openreloc.merger_training import dominant_objects, scene_examples
 from openreloc_bench.vision import create_segmenter
@@ -42,7 +43,7 @@ def test_fill_gives_unlabelled_points_the_instance_their_masks_hold() -> None:
         observation(list(range(10)), [[0, 1, 2, 3], [4, 5, 6]]),
         observation(list(range(10)), [[0, 1, 3], [4, 5, 6, 7]]),
     ]
-    views = R.view_evidence(10, obs, min_mask_points=1)
+    views = view_evidence(10, obs, min_mask_points=1)
     filled = R.fill_from_masks(labels, views, purity=0.6, share=0.5)
     np.testing.assert_array_equal(filled, [1, 1, 1, 1, 2, 2, 2, 2, 0, 0])
 
@@ -50,7 +51,7 @@ def test_fill_gives_unlabelled_points_the_instance_their_masks_hold() -> None:
 def test_fill_with_keep_changes_no_assigned_point() -> None:
     labels = np.array([1, 2, 0])
     obs = [observation([0, 1, 2], [[0, 1, 2]]), observation([0, 1, 2], [[0, 2]])]
-    views = R.view_evidence(3, obs, min_mask_points=1)
+    views = view_evidence(3, obs, min_mask_points=1)
     assert R.fill_from_masks(labels, views, 0.5, 0.5)[1] == 1  # re-voted: both masks vote for instance 1
     np.testing.assert_array_equal(R.fill_from_masks(labels, views, 0.5, 0.5, keep=True), [1, 2, 1])
 
@@ -105,7 +106,7 @@ def test_merge_joins_the_parts_of_an_object_and_nothing_else(shelf_in_parts: Pat
     points, labels = inst.reconstruction.points, inst.labels
     truth = M.instance_sets(M.box_point_labels(points, Scene(shelf_in_parts).objects, 0.03), 20)
     before = instance_report(points, inst.sets, truth)
-    views = R.view_evidence(len(points), inst.observations, 10)
+    views = view_evidence(len(points), inst.observations, 10)
     attrs = R.point_attributes(points, inst.observations, seq.poses[:, :3, 3])
     merged = R.merge_instances(points, labels, attrs, views, no_crease_classifier(), R.RepairConfig(fill=False))
     after = instance_report(points, M.instance_sets(merged, 20), truth)

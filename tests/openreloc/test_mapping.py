@@ -11,6 +11,7 @@ from openreloc_bench.data import io
 from openreloc_bench.data.scene import ObjectInfo, Scene
 from openreloc_bench.errors import DataError
 from openreloc_bench.openreloc import mapping as M
+from openreloc_bench.openreloc.incidence import incidence
 from openreloc_bench.openreloc.instance_eval import instance_report
 from tests.openreloc.boxworld import ROOM, NoisyMaskSegmenter, boxworld_sequence
 
@@ -117,7 +118,7 @@ def test_undersegmented_masks_are_dropped(room: tuple) -> None:
     obs2[obs.index(o)].masks = others + [merged]  # the two objects' masks replaced by one
     cfg = M.ClusteringConfig()
     masks = [(f, m) for f, ob in enumerate(obs2) for m in ob.masks if len(m) >= cfg.min_mask_points]
-    Mx = M._incidence(
+    Mx = incidence(
         np.concatenate([np.full(len(m), k) for k, (_, m) in enumerate(masks)]),
         np.concatenate([obs2[f].point_idx[m] for f, m in masks]),
         (len(masks), len(rec.points)),

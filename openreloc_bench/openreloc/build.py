@@ -180,14 +180,17 @@ def lift_instances(
     segmenter: Segmenter | None,
     progress: bool = True,
     timer: _Timer | None = None,
+    boundaries: bool = False,
 ) -> Instances:
     """Fusion, observation and 3D instances: the dataset masks voted (no segmenter), or the segmenter's
-    masks clustered by view consensus and repaired (:mod:`instance_repair`)."""
+    masks clustered by view consensus and repaired (:mod:`instance_repair`). The observations keep the
+    segmenter's boundaries and colours when the repair merges, or with ``boundaries``."""
     timer = timer or _Timer()
     with timer("fusion"):
         rec = mapping.fuse_tsdf(mapping_seq, config.fusion, progress)
     with timer("observation"):
-        obs = mapping.observe(mapping_seq, rec.points, rec.usable, config.observation, segmenter, progress)
+        keep = boundaries or config.instances.repair.merge
+        obs = mapping.observe(mapping_seq, rec.points, rec.usable, config.observation, segmenter, progress, keep)
     with timer("instances"):
         if segmenter is None:
             labels = mapping.lift_by_voting(len(rec.points), obs, config.instances.voting)

@@ -209,9 +209,9 @@ class FrameObservation:
     masks: list[np.ndarray] = field(default_factory=list)
     """Per segmenter mask: indices into ``point_idx`` of the seen points inside it."""
     boundary: np.ndarray | None = None
-    """(M,) float16 segmenter boundary strength at each seen point's pixel, with a segmenter."""
+    """(M,) float16 segmenter boundary strength at each seen point's pixel (``observe(boundaries=True)``)."""
     rgb: np.ndarray | None = None
-    """(M, 3) uint8 colour at each seen point's pixel, with a segmenter."""
+    """(M, 3) uint8 colour at each seen point's pixel (``observe(boundaries=True)``)."""
 
 
 def _pose(seq: SceneSequence, i: int) -> np.ndarray:
@@ -302,8 +302,11 @@ def observe(
     cfg: ObservationConfig,
     segmenter: Segmenter | None = None,
     progress: bool = True,
+    boundaries: bool = False,
 ) -> list[FrameObservation]:
-    """Project the scene cloud into each usable frame (depth-tested) and record what is seen."""
+    """Project the scene cloud into each usable frame (depth-tested) and record what is seen; with
+    ``boundaries`` also the segmenter's boundary strength and the colour at each seen point (what the
+    instance merge reads; about 5 bytes per seen point and frame)."""
     cells = _PointCells(points, cfg.cell_size)
     obs = []
     for i in tqdm(np.flatnonzero(usable), desc="observe", disable=not progress, leave=False):
@@ -332,11 +335,14 @@ def observe(
         )
         if segmenter is not None:
             rgb = read_color(seq, int(i))
-            masks, boundary = segmenter.segment_with_boundaries(rgb, inst)
+            if boundaries:
+                masks, boundary = segmenter.segment_with_boundaries(rgb, inst)
+                fo.boundary = boundary[pix[:, 1], pix[:, 0]].astype(np.float16)
+                fo.rgb = rgb[pix[:, 1], pix[:, 0]]
+            else:
+                masks = segmenter.segment(rgb, inst)
             for m in masks:
                 fo.masks.append(np.flatnonzero(m.mask[pix[:, 1], pix[:, 0]]).astype(np.int32))
-            fo.boundary = boundary[pix[:, 1], pix[:, 0]].astype(np.float16)
-            fo.rgb = rgb[pix[:, 1], pix[:, 0]]
         obs.append(fo)
     return obs
 

@@ -73,7 +73,7 @@ def scene_examples(scene_dir: Path, segmenter: Segmenter, config: MappingConfig)
             repair=no_repair,
         ),
     )
-    inst = lift_instances(seq, cfg, segmenter, progress=False)
+    inst = lift_instances(seq, cfg, segmenter, progress=False, boundaries=True)
     points, obs = inst.reconstruction.points, inst.observations
     rc = config.instances.repair
     views = view_evidence(len(points), obs, config.instances.clustering.min_mask_points)

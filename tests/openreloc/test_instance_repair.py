@@ -102,7 +102,7 @@ def test_merge_joins_the_parts_of_an_object_and_nothing_else(shelf_in_parts: Pat
     seq = Scene(shelf_in_parts).sequence("mapping")
     cfg = MappingConfig()
     cfg.instances.repair = R.RepairConfig(merge=False)
-    inst = lift_instances(seq, cfg, create_segmenter("gt", min_area=1), progress=False)
+    inst = lift_instances(seq, cfg, create_segmenter("gt", min_area=1), progress=False, boundaries=True)
     points, labels = inst.reconstruction.points, inst.labels
     truth = M.instance_sets(M.box_point_labels(points, Scene(shelf_in_parts).objects, 0.03), 20)
     before = instance_report(points, inst.sets, truth)
@@ -126,7 +126,7 @@ def test_repair_needs_boundaries_to_merge(shelf_in_parts: Path) -> None:
     seq = Scene(shelf_in_parts).sequence("mapping")
     cfg = MappingConfig()
     cfg.instances.repair = R.RepairConfig(merge=False)
-    inst = lift_instances(seq, cfg, create_segmenter("gt", min_area=1), progress=False)
+    inst = lift_instances(seq, cfg, create_segmenter("gt", min_area=1), progress=False, boundaries=True)
     for o in inst.observations:
         o.boundary = None
     with pytest.raises(ValueError, match="boundary"):

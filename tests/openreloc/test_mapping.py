@@ -23,7 +23,13 @@ def room(tmp_path_factory: pytest.TempPathFactory) -> tuple:
     seq = boxworld_sequence(tmp_path_factory.mktemp("room"), n_frames=16, hw=(96, 128))
     rec = M.fuse_tsdf(seq, FUSION, progress=False)
     obs = M.observe(
-        seq, rec.points, rec.usable, M.ObservationConfig(), NoisyMaskSegmenter(split_prob=0.0), progress=False
+        seq,
+        rec.points,
+        rec.usable,
+        M.ObservationConfig(),
+        NoisyMaskSegmenter(split_prob=0.0),
+        progress=False,
+        boundaries=True,
     )
     return seq, rec, obs
 
@@ -78,6 +84,8 @@ def test_observation_keeps_the_segmenters_boundaries_and_colours_at_seen_pixels(
     rec = room[1]
     blind = M.observe(seq, rec.points, rec.usable, M.ObservationConfig(), None, progress=False)[3]
     assert blind.boundary is None and blind.rgb is None and not blind.masks
+    plain = M.observe(seq, rec.points, rec.usable, M.ObservationConfig(), NoisyMaskSegmenter(), progress=False)[3]
+    assert plain.masks and plain.boundary is None and plain.rgb is None  # kept only when asked for
 
 
 def test_clustering_of_noisy_masks_recovers_instances(room: tuple) -> None:

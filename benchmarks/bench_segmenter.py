@@ -22,15 +22,13 @@ import torch
 
 from openreloc_bench.data.scene import Scene
 from openreloc_bench.vision import create_segmenter
+from openreloc_bench.vision.base import label_image
 from openreloc_bench.vision.segmenter_training import frame_metrics, summarize
 
 
 def labels_of(masks, shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
     """A label image (0 = no segment; where masks overlap, the first wins) and the masks' scores."""
-    labels = np.zeros(shape, np.int32)
-    for k, m in enumerate(masks, start=1):
-        labels[m.mask & (labels == 0)] = k
-    return labels, np.array([m.score for m in masks], float)
+    return label_image(masks, shape), np.array([m.score for m in masks], float)
 
 
 def main() -> None:

@@ -32,9 +32,9 @@ from openreloc_bench.harness.cache import build_map_cached, config_hash
 from openreloc_bench.harness.metrics import summarize
 from openreloc_bench.methods import Failure, PoseEstimate, QueryFrame, create_method
 from openreloc_bench.openreloc.map import ObjectMap
-from openreloc_bench.openreloc.mapping import box_point_labels
+from openreloc_bench.openreloc.mapping import box_point_labels, boxed_objects
 from openreloc_bench.vision import create_segmenter
-from openreloc_bench.vision.base import ObjectMask, Segmenter
+from openreloc_bench.vision.base import ObjectMask, Segmenter, label_image
 from openreloc_bench.vision.segmenter_training import frame_metrics
 from openreloc_bench.vision.segmenter_training import summarize as summarize_segments
 
@@ -81,13 +81,6 @@ def boundary_f(counts: np.ndarray) -> float:
     return float(2 * precision * recall / max(precision + recall, 1e-12))
 
 
-def label_image(masks: list[ObjectMask], shape: tuple[int, int]) -> np.ndarray:
-    labels = np.zeros(shape, np.int32)
-    for k, m in enumerate(masks, start=1):
-        labels[m.mask & (labels == 0)] = k
-    return labels
-
-
 def segmentation_quality(seq: SceneSequence, segmenter: Segmenter, frames: int) -> dict[str, Any]:
     """Segment quality of ``frames`` evenly spaced frames (needs their instance images)."""
     stats, counts = [], np.zeros(4, np.int64)
@@ -119,7 +112,7 @@ class _TruthLabelledSegmenter(Segmenter):
 
 def landmark_objects(m: ObjectMap, scene: Scene, margin: float) -> dict[int, int]:
     """Landmark id -> the true object holding most of its points (0: none)."""
-    objects = {i: o for i, o in scene.objects.items() if np.any(np.asarray(o.aabb[1]) > np.asarray(o.aabb[0]))}
+    objects = boxed_objects(scene.objects)
     out = {}
     for i, lm in m.landmarks.items():
         ids, n = np.unique(box_point_labels(lm.points, objects, margin), return_counts=True)

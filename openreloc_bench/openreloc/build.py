@@ -229,7 +229,7 @@ def _reference_labels(
 ) -> tuple[np.ndarray | None, str | None]:
     """Ground-truth point labels for scoring instances: object boxes if the scene has them, else the
     vote of the dataset masks (reusing the oracle labels when they were just computed)."""
-    objects = {i: o for i, o in _objects(seq).items() if np.any(np.asarray(o.aabb[1]) > np.asarray(o.aabb[0]))}
+    objects = mapping.boxed_objects(_objects(seq))
     if objects:
         return mapping.box_point_labels(points, objects, config.instances.gt_box_margin), "object boxes"
     if all(o.gt_ids is not None for o in obs):

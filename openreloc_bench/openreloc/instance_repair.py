@@ -134,9 +134,7 @@ def point_attributes(points: np.ndarray, obs: list, camera_centres: np.ndarray) 
     return PointAttributes(boundary, rgb, normals)
 
 
-def fill_from_masks(
-    labels: np.ndarray, views: ViewEvidence, purity: float, share: float, keep: bool = False
-) -> np.ndarray:
+def fill_from_masks(labels: np.ndarray, views: ViewEvidence, purity: float, share: float) -> np.ndarray:
     """Labels re-voted through the masks: a mask votes for the instance holding ``purity`` of its
     labelled points; a point takes the instance with the most votes when they are at least ``share`` of
     the masks holding it (else it is unassigned). Instance ids are kept."""
@@ -153,8 +151,7 @@ def fill_from_masks(
     held = np.asarray(views.masks.sum(axis=0)).ravel()
     most = np.asarray(votes.max(axis=1).todense()).ravel()
     winner = np.asarray(votes.argmax(axis=1)).ravel()
-    voted = np.where((most > 0) & (most >= share * held), ids[winner], 0).astype(np.int64)
-    return np.where(labels > 0, labels, voted) if keep else voted
+    return np.where((most > 0) & (most >= share * held), ids[winner], 0).astype(np.int64)
 
 
 @dataclass

@@ -600,6 +600,11 @@ def instance_sets(labels: np.ndarray, min_points: int) -> dict[int, np.ndarray]:
     return {int(i): order[s : s + c] for i, s, c in zip(ids, start, count) if c >= min_points}
 
 
+def boxed_objects(objects: dict[int, ObjectInfo]) -> dict[int, ObjectInfo]:
+    """The objects with a box (``objects.json`` of generated scenes; converted real data has none)."""
+    return {i: o for i, o in objects.items() if np.any(np.asarray(o.aabb[1]) > np.asarray(o.aabb[0]))}
+
+
 def box_point_labels(points: np.ndarray, objects: dict[int, ObjectInfo], margin: float) -> np.ndarray:
     """(N,) ground-truth instance id per point from the objects' world boxes (0 = in no box).
 

@@ -9,7 +9,7 @@ instance mostly outside any one object (under half its points) teach nothing cle
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -59,20 +59,12 @@ def scene_examples(scene_dir: Path, segmenter: Segmenter, config: MappingConfig)
     fill), with their truth from the scene's object boxes."""
     scene = Scene(scene_dir)
     seq = scene.sequence("mapping")
-    objects = {i: o for i, o in scene.objects.items() if np.any(np.asarray(o.aabb[1]) > np.asarray(o.aabb[0]))}
+    objects = mapping.boxed_objects(scene.objects)
     if not objects:
         raise DataError(scene_dir / "objects.json", "no object boxes: merge training needs generated scenes")
-    no_repair = config.instances.repair.__class__(fill=False, merge=False)
-    cfg = MappingConfig(
-        fusion=config.fusion,
-        observation=config.observation,
-        instances=mapping.InstanceConfig(
-            min_points=config.instances.min_points,
-            gt_box_margin=config.instances.gt_box_margin,
-            clustering=config.instances.clustering,
-            repair=no_repair,
-        ),
-    )
+    # the instances as clustered, without repair: fill is applied below, as the merge step sees it
+    no_repair = replace(config.instances.repair, fill=False, merge=False)
+    cfg = replace(config, instances=replace(config.instances, repair=no_repair))
     inst = lift_instances(seq, cfg, segmenter, progress=False, boundaries=True)
     points, obs = inst.reconstruction.points, inst.observations
     rc = config.instances.repair

@@ -78,12 +78,18 @@ class Segmenter(abc.ABC):
         return masks, mask_borders(masks, rgb.shape[:2])
 
 
-def mask_borders(masks: Sequence[ObjectMask], shape: tuple[int, int]) -> np.ndarray:
-    """(H, W) float32: 1 where a pixel and its right or lower neighbour lie in different masks (or one in
-    none), on both sides of the border; else 0."""
+def label_image(masks: Sequence[ObjectMask], shape: tuple[int, int]) -> np.ndarray:
+    """(H, W) int32: mask k (from 1) where it lies, 0 in no mask; where masks overlap the first wins."""
     labels = np.zeros(shape, np.int32)
     for k, m in enumerate(masks, start=1):
         labels[m.mask & (labels == 0)] = k
+    return labels
+
+
+def mask_borders(masks: Sequence[ObjectMask], shape: tuple[int, int]) -> np.ndarray:
+    """(H, W) float32: 1 where a pixel and its right or lower neighbour lie in different masks (or one in
+    none), on both sides of the border; else 0."""
+    labels = label_image(masks, shape)
     edge = np.zeros(shape, bool)
     for axis in (0, 1):
         diff = np.diff(labels, axis=axis) != 0

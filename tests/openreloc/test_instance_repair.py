@@ -48,12 +48,11 @@ def test_fill_gives_unlabelled_points_the_instance_their_masks_hold() -> None:
     np.testing.assert_array_equal(filled, [1, 1, 1, 1, 2, 2, 2, 2, 0, 0])
 
 
-def test_fill_with_keep_changes_no_assigned_point() -> None:
+def test_fill_revotes_assigned_points_too() -> None:
     labels = np.array([1, 2, 0])
     obs = [observation([0, 1, 2], [[0, 1, 2]]), observation([0, 1, 2], [[0, 2]])]
     views = view_evidence(3, obs, min_mask_points=1)
     assert R.fill_from_masks(labels, views, 0.5, 0.5)[1] == 1  # re-voted: both masks vote for instance 1
-    np.testing.assert_array_equal(R.fill_from_masks(labels, views, 0.5, 0.5, keep=True), [1, 2, 1])
 
 
 def test_fit_merger_separates_separable_pairs_and_round_trips(tmp_path: Path) -> None:

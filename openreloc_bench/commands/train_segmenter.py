@@ -44,6 +44,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--batch", type=int, default=8, help="crops per step")
     p.add_argument("--crop", type=int, default=192, help="crop side at the working resolution")
     p.add_argument("--lr", type=float, default=3e-3, help="peak learning rate")
+    p.add_argument(
+        "--init", type=Path, default=None, help="weights directory to start from (fine-tuning); default: random"
+    )
     p.add_argument("--per-split", type=int, default=12, help="frames kept per split and scene")
     p.add_argument("--width", type=int, default=640, help="render width of the generated scenes")
     p.add_argument("--height", type=int, default=480, help="render height of the generated scenes")
@@ -61,7 +64,7 @@ def run(args: argparse.Namespace) -> int:
     from openreloc_bench import config as cfgmod
     from openreloc_bench.data import io, paths
     from openreloc_bench.harness.suites import scene_dirs, training_scenes
-    from openreloc_bench.vision.learned_segment import NetConfig, save_weights
+    from openreloc_bench.vision.learned_segment import NetConfig, load_weights, save_weights
     from openreloc_bench.vision.segmenter_training import (
         SegTrainConfig,
         evaluate_thresholds,
@@ -84,7 +87,7 @@ def run(args: argparse.Namespace) -> int:
         "train-segmenter",
     )  # fmt: skip
     device = training_device(args.device)  # refuse a missing GPU before generating anything
-    net_cfg = NetConfig()
+    net_cfg = load_weights(args.init)[1] if args.init else NetConfig()
     data = args.data or args.out / "scenes"
     with paths.directory_lock(args.out, "openreloc-bench train-segmenter"):
         train_dirs, eval_dirs = scene_dirs(data / "train"), scene_dirs(data / "eval")
@@ -111,13 +114,14 @@ def run(args: argparse.Namespace) -> int:
         print(f"{len(train)} training frames from {len(train_dirs)} scenes; {len(held)} held-out frames", flush=True)
         t0 = time.time()
         net, info = train_boundary_net(
-            train, net_cfg, cfg, args.out / "checkpoint.pt", log=lambda m: print(m, flush=True)
+            train, net_cfg, cfg, args.out / "checkpoint.pt", log=lambda m: print(m, flush=True), init=args.init
         )
         torch.set_num_threads(args.threads)
         scores = evaluate_thresholds(net, held, THRESHOLDS)
         best = max(THRESHOLDS, key=lambda t: scores[t]["mean_best_iou"] + scores[t]["ap50"])
         card = {
             "id": info["recipe"],
+            **({"init": info["init"]} if "init" in info else {}),
             "threshold": best,
             "held_out": {"threshold": best, **scores[best]},
             "thresholds": {str(t): s for t, s in scores.items()},

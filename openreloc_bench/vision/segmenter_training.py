@@ -34,6 +34,7 @@ from openreloc_bench.errors import ConfigError
 from openreloc_bench.vision.learned_segment import (
     BoundaryNet,
     NetConfig,
+    load_weights,
     segment_scores,
     segments_from_boundaries,
     standardize,
@@ -185,10 +186,14 @@ def boundary_loss(logit: torch.Tensor, target: torch.Tensor, cfg: SegTrainConfig
 # ------------------------------------------------------------------------------------------------ training
 
 
-def recipe_id(cfg: SegTrainConfig, net_cfg: NetConfig, scenes: Sequence[str]) -> str:
-    """Hash of everything that determines the weights (a checkpoint resumes only the same recipe)."""
+def recipe_id(cfg: SegTrainConfig, net_cfg: NetConfig, scenes: Sequence[str], init_id: str = "") -> str:
+    """Hash of everything that determines the weights (a checkpoint resumes only the same recipe);
+    ``init_id`` is the card id of the weights training started from ("" for a random start)."""
     recipe = {k: v for k, v in asdict(cfg).items() if k not in ("threads", "checkpoint_every")}
-    blob = json.dumps({"train": recipe, "net": asdict(net_cfg), "scenes": list(scenes)}, sort_keys=True)
+    blob = {"train": recipe, "net": asdict(net_cfg), "scenes": list(scenes)}
+    if init_id:
+        blob["init"] = init_id
+    blob = json.dumps(blob, sort_keys=True)
     return hashlib.sha256(blob.encode()).hexdigest()[:16]
 
 
@@ -198,8 +203,10 @@ def train_boundary_net(
     cfg: SegTrainConfig,
     checkpoint: Path | None = None,
     log: Callable[[str], None] = print,
+    init: Path | None = None,
 ) -> tuple[BoundaryNet, dict[str, Any]]:
-    """Train on ``frames``; resumes from ``checkpoint`` when it holds the same recipe."""
+    """Train on ``frames``, from random weights or from the weights directory ``init`` (fine-tuning,
+    e.g. on scenes of a new data version); resumes from ``checkpoint`` when it holds the same recipe."""
     if cfg.crop % net_cfg.stride:
         raise ConfigError(f"crop {cfg.crop} must be a multiple of the network's stride {net_cfg.stride}")
     if cfg.crop > min(frames.ids.shape[1:]):
@@ -208,9 +215,17 @@ def train_boundary_net(
     torch.set_num_threads(cfg.threads)
     torch.manual_seed(cfg.seed)
     rng = np.random.default_rng(cfg.seed)
-    net = BoundaryNet(net_cfg).to(device)
+    net = BoundaryNet(net_cfg)
+    init_id = ""
+    if init is not None:
+        start, start_cfg, start_card = load_weights(init)
+        if start_cfg != net_cfg:
+            raise ConfigError(f"{init}: its network ({start_cfg}) is not the one to train ({net_cfg})")
+        net.load_state_dict(start.state_dict())
+        init_id = start_card.get("id", "")
+    net = net.to(device)
     opt = torch.optim.AdamW(net.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
-    rid = recipe_id(cfg, net_cfg, sorted(set(frames.scene)))
+    rid = recipe_id(cfg, net_cfg, sorted(set(frames.scene)), init_id)
     step, history, seconds = 0, [], 0.0
     if checkpoint is not None and checkpoint.is_file():
         state = torch.load(checkpoint, map_location=device, weights_only=False)
@@ -254,7 +269,10 @@ def train_boundary_net(
                 if checkpoint is not None:
                     _save_checkpoint(checkpoint, net, opt, step, history, seconds + time.perf_counter() - t0, rng, rid)
     net.eval()
-    return net.cpu(), {"history": history, "train_seconds": round(seconds + time.perf_counter() - t0, 1), "recipe": rid}
+    info = {"history": history, "train_seconds": round(seconds + time.perf_counter() - t0, 1), "recipe": rid}
+    if init_id:
+        info["init"] = init_id
+    return net.cpu(), info
 
 
 def _save_checkpoint(

@@ -11,8 +11,9 @@ import torch
 sys.path.insert(0, str(Path(__file__).parent))
 from vision_scenes import write_shapes_scene  # noqa: E402
 
+from openreloc_bench.errors import ConfigError  # noqa: E402
 from openreloc_bench.vision import segmenter_training as training  # noqa: E402
-from openreloc_bench.vision.learned_segment import NetConfig  # noqa: E402
+from openreloc_bench.vision.learned_segment import NetConfig, save_weights  # noqa: E402
 from openreloc_bench.vision.segmenter_training import (  # noqa: E402
     SegTrainConfig,
     augment,
@@ -86,6 +87,19 @@ def test_training_lowers_the_loss(frames) -> None:
     cfg = SegTrainConfig(steps=60, batch=4, crop=48, lr=1e-2, warmup_steps=5, threads=1, checkpoint_every=20)
     _, info = train_boundary_net(frames, NET, cfg, log=lambda m: None)
     assert info["history"][-1]["loss"] < info["history"][0]["loss"]
+
+
+def test_fine_tuning_starts_from_the_given_weights(frames, tmp_path: Path) -> None:
+    cfg = SegTrainConfig(steps=60, batch=4, crop=48, lr=1e-2, warmup_steps=5, threads=1, checkpoint_every=20)
+    trained, info = train_boundary_net(frames, NET, cfg, log=lambda m: None)
+    save_weights(tmp_path / "w", trained, NET, {"id": info["recipe"]})
+    short = SegTrainConfig(steps=20, batch=4, crop=48, lr=1e-3, warmup_steps=5, threads=1, checkpoint_every=20)
+    _, scratch = train_boundary_net(frames, NET, short, log=lambda m: None)
+    _, tuned = train_boundary_net(frames, NET, short, log=lambda m: None, init=tmp_path / "w")
+    assert tuned["init"] == info["recipe"] and tuned["recipe"] != scratch["recipe"]
+    assert tuned["history"][0]["loss"] < scratch["history"][0]["loss"]
+    with pytest.raises(ConfigError, match="is not the one to train"):
+        train_boundary_net(frames, NetConfig(widths=(8, 8, 16), work_width=128), short, init=tmp_path / "w")
 
 
 def test_a_resumed_run_ends_with_the_weights_of_an_uninterrupted_one(frames, tmp_path: Path, monkeypatch) -> None:

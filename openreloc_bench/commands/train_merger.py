@@ -2,8 +2,8 @@
 
 Generates scenes from the seeds reserved for training (never a benchmark or validation scene),
 builds each one's instances from the segmenter's masks as mapping does (fusion, observation,
-view-consensus clustering, fill), labels every pair of touching instances from the scene's object
-boxes, and fits the logistic regression of ``openreloc/instance_repair.py``. ``--eval-scenes`` more,
+grouping, fill when on; ``--config`` and ``--set`` take openreloc's settings), labels every pair of
+touching instances from the scene's object boxes, and fits the logistic regression of ``openreloc/instance_repair.py``. ``--eval-scenes`` more,
 from a disjoint part of the range, give the card's held-out pair accuracy. The merge threshold is a
 mapping setting, chosen on the validation suite with ``openreloc-bench diagnose``. Writes a directory
 to use as ``--set mapping.instances.repair.merger=DIR``.
@@ -17,6 +17,7 @@ import argparse
 import time
 from pathlib import Path
 
+from openreloc_bench.commands.options import add_method_config_arguments, method_overrides
 from openreloc_bench.errors import ConfigError
 
 NAME = "train-merger"
@@ -39,24 +40,32 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--data", type=Path, default=None, help="scene folder (train/, eval/; generated when empty); default OUT/scenes"
     )
-    p.add_argument("--segmenter", default="learned", help="segmenter whose masks the instances come from")
+    p.add_argument(
+        "--segmenter", default=None, help="segmenter whose masks the instances come from; default: the method config's"
+    )
     p.add_argument("--workers", type=int, default=2, help="parallel scene generation processes")
+    add_method_config_arguments(p)  # openreloc's settings: its mapping section and segmenter options apply
 
 
 def run(args: argparse.Namespace) -> int:
+    from openreloc_bench import config as cfgmod
     from openreloc_bench.data import io, paths
     from openreloc_bench.harness.suites import scene_dirs, training_scenes
-    from openreloc_bench.openreloc.build import MappingConfig
     from openreloc_bench.openreloc.instance_repair import FEATURES, fit_merger
     from openreloc_bench.openreloc.merger_training import collect_examples, pair_accuracy
+    from openreloc_bench.openreloc.method import OpenReLocConfig
     from openreloc_bench.vision import create_segmenter
 
     for flag, value in (("--scenes", args.scenes), ("--eval-scenes", args.eval_scenes)):
         if value < 1:
             raise ConfigError(f"{flag} must be >= 1, got {value}")
-    segmenter = create_segmenter(args.segmenter)  # an unknown name fails before generating anything
+    method_cfg = cfgmod.from_dict(OpenReLocConfig, method_overrides(args), "openreloc")
+    if args.segmenter:
+        method_cfg.segmenter, method_cfg.segmenter_options = args.segmenter, {}
+    # an unknown name or missing weights fail before generating anything
+    segmenter = create_segmenter(method_cfg.segmenter, **method_cfg.segmenter_options)
     data = args.data or args.out / "scenes"
-    config = MappingConfig()
+    config = method_cfg.mapping
     with paths.directory_lock(args.out, "openreloc-bench train-merger"):
         train_dirs, eval_dirs = scene_dirs(data / "train"), scene_dirs(data / "eval")
         if not (train_dirs and eval_dirs):
@@ -75,7 +84,8 @@ def run(args: argparse.Namespace) -> int:
         classifier = fit_merger(train.features, train.same)
         threshold = config.instances.repair.merge_threshold
         classifier.card = {
-            "segmenter": segmenter.config() if hasattr(segmenter, "config") else {"name": args.segmenter},
+            "segmenter": segmenter.config() if hasattr(segmenter, "config") else {"name": method_cfg.segmenter},
+            "grouping": config.instances.grouping,
             "train_seeds": [io.read_json(d / "scene.json").get("seed") for d in train_dirs],
             "eval_seeds": [io.read_json(d / "scene.json").get("seed") for d in eval_dirs],
             "train_pairs": int(len(train.same)),

@@ -29,6 +29,7 @@ from openreloc_bench.data.scene import Scene
 from openreloc_bench.data.types import SceneSequence
 from openreloc_bench.errors import ConfigError
 from openreloc_bench.openreloc import mapping
+from openreloc_bench.openreloc.affinity_grouping import lift_by_affinity
 from openreloc_bench.openreloc.descriptors import DescriptorConfig, compute_descriptors
 from openreloc_bench.openreloc.filtering import FilterConfig, invalid_landmarks
 from openreloc_bench.openreloc.instance_eval import instance_report
@@ -183,7 +184,7 @@ def lift_instances(
     boundaries: bool = False,
 ) -> Instances:
     """Fusion, observation and 3D instances: the dataset masks voted (no segmenter), or the segmenter's
-    masks clustered by view consensus and repaired (:mod:`instance_repair`). The observations keep the
+    masks grouped (view-consensus clustering or affinity grouping) and repaired (:mod:`instance_repair`). The observations keep the
     segmenter's boundaries and colours when the repair merges, or with ``boundaries``."""
     timer = timer or _Timer()
     with timer("fusion"):
@@ -195,18 +196,24 @@ def lift_instances(
         if segmenter is None:
             labels = mapping.lift_by_voting(len(rec.points), obs, config.instances.voting)
         else:
-            labels = mapping.lift_by_clustering(rec.points, obs, config.instances.clustering)
             labels = repair_instances(
                 rec.points,
-                labels,
+                group_masks(rec.points, obs, config.instances),
                 obs,
                 mapping_seq.poses[:, :3, 3],
                 config.instances.repair,
-                config.instances.clustering.min_mask_points,
+                config.instances.min_mask_points,
             )
         sets = mapping.instance_sets(labels, config.instances.min_points)
         labels = np.where(np.isin(labels, list(sets)), labels, 0)
     return Instances(rec, obs, labels, sets)
+
+
+def group_masks(points: np.ndarray, obs: list, cfg: mapping.InstanceConfig) -> np.ndarray:
+    """(N,) instance label per scene point from the segmenter's masks, grouped as ``cfg.grouping`` says."""
+    if cfg.grouping == "affinity":
+        return lift_by_affinity(points, obs, cfg.affinity)
+    return mapping.lift_by_clustering(points, obs, cfg.clustering)
 
 
 def _downsample(points: np.ndarray, voxel: float, cap: int, rng: np.random.Generator) -> np.ndarray:

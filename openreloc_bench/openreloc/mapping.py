@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, field
+from typing import Literal
 
 import numba
 import numpy as np
@@ -42,6 +43,7 @@ from openreloc_bench.data import io
 from openreloc_bench.data.scene import ObjectInfo
 from openreloc_bench.data.types import SceneSequence
 from openreloc_bench.errors import DataError
+from openreloc_bench.openreloc.affinity_grouping import AffinityConfig
 from openreloc_bench.openreloc.incidence import incidence, sets_matrix, view_evidence
 from openreloc_bench.openreloc.instance_repair import RepairConfig
 from openreloc_bench.vision.base import Segmenter
@@ -175,13 +177,23 @@ class InstanceConfig:
     gt_box_margin: float = 0.03
     """Ground truth for the instance precision/recall: points within this distance (m) of an object's
     box in ``objects.json`` (see :func:`box_point_labels`); ~1.5 fusion voxels absorbs surface noise."""
+    grouping: Literal["clustering", "affinity"] = "clustering"
+    """How a segmenter's masks become 3D instances: 'clustering' (view consensus of whole masks,
+    :func:`lift_by_clustering`) or 'affinity' (neighbouring points held together by the views' masks,
+    :mod:`affinity_grouping`)."""
     voting: VotingConfig = field(default_factory=VotingConfig)
     clustering: ClusteringConfig = field(default_factory=ClusteringConfig)
+    affinity: AffinityConfig = field(default_factory=AffinityConfig)
     repair: RepairConfig = field(default_factory=RepairConfig)
-    """Fill and merge of the clustered instances (segmenter masks only)."""
+    """Fill and merge of the grouped instances (segmenter masks only)."""
 
     def __post_init__(self) -> None:
         check_ranges(self, non_negative=("min_points", "gt_box_margin"))
+
+    @property
+    def min_mask_points(self) -> int:
+        """The smallest 2D mask the chosen grouping trusts (the repair reads the same masks)."""
+        return (self.affinity if self.grouping == "affinity" else self.clustering).min_mask_points
 
 
 @dataclass

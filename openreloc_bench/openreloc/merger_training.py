@@ -1,7 +1,7 @@
 """Training the instance merge classifier (:mod:`instance_repair`) on generated training scenes.
 
 On a training scene the truth of every pair of touching instances is free: the scene's object boxes
-label the scene points (:func:`mapping.box_point_labels`), each clustered instance takes the object
+label the scene points (:func:`mapping.box_point_labels`), each grouped instance takes the object
 most of its points lie in, and a pair is one object when both take the same one. Pairs with an
 instance mostly outside any one object (under half its points) teach nothing clean and are left out.
 """
@@ -55,20 +55,20 @@ def dominant_objects(labels: np.ndarray, truth: np.ndarray) -> dict[int, tuple[i
 
 
 def scene_examples(scene_dir: Path, segmenter: Segmenter, config: MappingConfig) -> MergeExamples:
-    """The pairs of touching instances the repair's merge step sees on one scene (after clustering and
-    fill), with their truth from the scene's object boxes."""
+    """The pairs of touching instances the repair's merge step sees on one scene (after grouping, and
+    fill when it is on), with their truth from the scene's object boxes."""
     scene = Scene(scene_dir)
     seq = scene.sequence("mapping")
     objects = mapping.boxed_objects(scene.objects)
     if not objects:
         raise DataError(scene_dir / "objects.json", "no object boxes: merge training needs generated scenes")
-    # the instances as clustered, without repair: fill is applied below, as the merge step sees it
+    # the instances as grouped, without repair: fill is applied below, as the merge step sees it
     no_repair = replace(config.instances.repair, fill=False, merge=False)
     cfg = replace(config, instances=replace(config.instances, repair=no_repair))
     inst = lift_instances(seq, cfg, segmenter, progress=False, boundaries=True)
     points, obs = inst.reconstruction.points, inst.observations
     rc = config.instances.repair
-    views = view_evidence(len(points), obs, config.instances.clustering.min_mask_points)
+    views = view_evidence(len(points), obs, config.instances.min_mask_points)
     labels = repair.fill_from_masks(inst.labels, views, rc.fill_purity, rc.fill_share) if rc.fill else inst.labels
     attrs = repair.point_attributes(points, obs, seq.poses[:, :3, 3])
     neighbours = cKDTree(points).query_pairs(rc.contact_radius, output_type="ndarray")

@@ -37,3 +37,10 @@ def test_train_merger_bad_arguments(data: Path, tmp_path: Path, capsys, extra: l
     assert main(["train-merger", "--out", str(tmp_path / "m"), "--data", str(data), *extra]) == 2
     err = capsys.readouterr().err
     assert message in err and "Traceback" not in err
+
+
+def test_train_merger_reads_the_method_config(data: Path, tmp_path: Path) -> None:
+    args = ["--data", str(data), "--set", "segmenter=gt", "--set", "mapping.instances.grouping=affinity"]
+    assert main(["train-merger", "--out", str(tmp_path / "m"), *args]) == 0
+    assert MergeClassifier.load(tmp_path / "m").card["grouping"] == "affinity"
+    assert main(["train-merger", "--out", str(tmp_path / "m2"), *args, "--set", "mapping.instances.grouping=x"]) == 2

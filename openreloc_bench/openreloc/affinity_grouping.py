@@ -3,8 +3,7 @@
 The predicted track's alternative to view-consensus clustering (:func:`mapping.lift_by_clustering`),
 in the spirit of superpoint methods (SAI3D, Open3DIS) but with the scene's own points as atoms:
 
-1. **Edge evidence** (:func:`edge_evidence`): for every pair of scene points closer than
-   ``neighbour_radius``, count the frames that see both and the frames where one 2D mask holds both.
+1. **Edge evidence** (:func:`edge_evidence`): for every pair of neighbouring scene points, count the frames that see both and the frames where one 2D mask holds both.
    Their ratio is the pair's *affinity*. A segmenter that cuts an object at varying places in
    different views still holds most neighbouring pairs together in most views; a true object border
    separates them in most views.
@@ -14,7 +13,7 @@ in the spirit of superpoint methods (SAI3D, Open3DIS) but with the scene's own p
    pooled over all edges of their shared border (sum of "held together" over sum of "seen together")
    stays >= ``merge_affinity``. Pooling over the whole border makes a few leaking edges harmless,
    which connected components at one threshold are not (one chain of bad edges joins two objects).
-4. **Absorption**: regions smaller than ``min_region_points`` (slivers along mask borders) join the
+4. **Absorption**: regions smaller than ``min_region_area`` (slivers along mask borders) join the
    large neighbour they have the highest pooled affinity with, or are left unassigned if they touch
    none.
 
@@ -42,9 +41,9 @@ from openreloc_bench.config import check_ranges
 class AffinityConfig:
     """Affinity grouping of the segmenter's masks (see the module docstring)."""
 
-    neighbour_radius: float = 0.03
-    """Scene points closer than this (m) are neighbours whose affinity is counted (~1.5 fusion voxels:
-    the 8-neighbourhood of the 2 cm point grid)."""
+    neighbour_radius: float = 1.5
+    """Scene points closer than this many point spacings (the fusion voxel) are neighbours whose
+    affinity is counted: 1.5 takes the diagonal neighbours of the point grid."""
     min_mask_points: int = 10
     """2D masks holding fewer seen scene points count as holding none (too small to trust)."""
     seed_affinity: float = 0.97
@@ -54,27 +53,31 @@ class AffinityConfig:
     merge_affinity: float = 0.8
     """Adjacent regions merge while the affinity pooled over their shared border is at least this
     (lower: fewer, larger instances; chosen on the validation scenes, ``docs/experiments.md``)."""
-    min_region_points: int = 200
-    """Regions with fewer points join their best large neighbour (slivers along mask borders)."""
+    min_region_area: float = 0.08
+    """Regions of fewer points than cover this area (m^2) at the point spacing join their best large
+    neighbour (slivers along mask borders)."""
 
     def __post_init__(self) -> None:
         check_ranges(
             self,
             positive=("neighbour_radius",),
-            non_negative=("min_mask_points", "seed_min_views", "min_region_points"),
+            non_negative=("min_mask_points", "seed_min_views", "min_region_area"),
             share=("seed_affinity", "merge_affinity"),
         )
 
 
-def lift_by_affinity(points: np.ndarray, obs: list, cfg: AffinityConfig) -> np.ndarray:
-    """(N,) int64 instance label per scene point (0 = unassigned), numbered 1.. in order of first point."""
-    edges = cKDTree(points).query_pairs(cfg.neighbour_radius, output_type="ndarray")
+def lift_by_affinity(points: np.ndarray, obs: list, cfg: AffinityConfig, spacing: float) -> np.ndarray:
+    """(N,) int64 instance label per scene point (0 = unassigned), numbered 1.. in order of first point;
+    ``spacing``: the scene cloud's point spacing (m), the fusion voxel."""
+    if len(points) == 0:
+        return np.zeros(0, np.int64)
+    edges = cKDTree(points).query_pairs(cfg.neighbour_radius * spacing, output_type="ndarray")
     both, same = edge_evidence(len(points), obs, edges, cfg.min_mask_points)
     strong = (same >= cfg.seed_affinity * both) & (both >= max(cfg.seed_min_views, 1))
     seeds = sp.coo_matrix((np.ones(int(strong.sum())), edges[strong].T), shape=(len(points),) * 2)
     regions = connected_components(seeds, directed=False)[1]
     regions = agglomerate(regions, edges, both, same, cfg.merge_affinity)
-    regions = absorb_small(regions, edges, both, same, cfg.min_region_points)
+    regions = absorb_small(regions, edges, both, same, round(cfg.min_region_area / spacing**2))
     labels = np.zeros(len(points), np.int64)
     kept = regions >= 0
     _, first, inverse = np.unique(regions[kept], return_index=True, return_inverse=True)
@@ -109,11 +112,11 @@ def border_counts(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Pairs of adjacent regions (first < second) with the sums of ``same`` and ``both`` over the edges
     of their shared border."""
+    n = int(regions.max(initial=0)) + 1
     a, b = regions[edges[:, 0]], regions[edges[:, 1]]
     cross = (a != b) & (a >= 0) & (b >= 0)
     lo, hi = np.minimum(a[cross], b[cross]), np.maximum(a[cross], b[cross])
-    keys, inverse = np.unique(lo.astype(np.int64) * (int(regions.max()) + 1) + hi, return_inverse=True)
-    n = int(regions.max()) + 1
+    keys, inverse = np.unique(lo.astype(np.int64) * n + hi, return_inverse=True)
     return (
         keys // n,
         keys % n,
@@ -127,15 +130,16 @@ def agglomerate(regions: np.ndarray, edges: np.ndarray, both: np.ndarray, same: 
     each point's final region (the id of one of its merged seeds).
 
     Written here because what it needs is average linkage on a sparse region graph whose linkage is a
-    ratio of sums: scipy's hierarchy needs all pairwise distances (10^9 for 40k seeds) and
-    scikit-image's RAG merging (networkx-based, not a dependency) has no ratio-of-sums weight."""
+    ratio of sums: scipy's hierarchy needs all pairwise distances (10^9 for 40k seeds), and
+    scikit-image's RAG merging, which custom callbacks could bend to it, is not a dependency and walks
+    a networkx graph in Python per merge."""
     first, second, s, b = border_counts(regions, edges, both, same)
     border: dict[int, dict[int, list[float]]] = {}
     for x, y, sx, bx in zip(first.tolist(), second.tolist(), s.tolist(), b.tolist()):
         border.setdefault(x, {})[y] = border.setdefault(y, {})[x] = [sx, bx]
     heap = [(-sx / bx, x, y) for x, y, sx, bx in zip(first.tolist(), second.tolist(), s.tolist(), b.tolist()) if bx > 0]
     heapq.heapify(heap)
-    parent = np.arange(int(regions.max()) + 1)
+    parent = np.arange(int(regions.max(initial=0)) + 1)
     while heap:
         neg, x, y = heapq.heappop(heap)
         if -neg < stop:
@@ -169,7 +173,7 @@ def absorb_small(
 ) -> np.ndarray:
     """Regions under ``min_points`` points join the large neighbour of highest pooled border affinity;
     those touching no large region become -1 (unassigned)."""
-    size = np.bincount(regions, minlength=int(regions.max()) + 1)
+    size = np.bincount(regions)
     small = size < min_points
     if not small.any():
         return regions

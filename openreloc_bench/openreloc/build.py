@@ -198,7 +198,7 @@ def lift_instances(
         else:
             labels = repair_instances(
                 rec.points,
-                group_masks(rec.points, obs, config.instances),
+                group_masks(rec.points, obs, config),
                 obs,
                 mapping_seq.poses[:, :3, 3],
                 config.instances.repair,
@@ -209,10 +209,11 @@ def lift_instances(
     return Instances(rec, obs, labels, sets)
 
 
-def group_masks(points: np.ndarray, obs: list, cfg: mapping.InstanceConfig) -> np.ndarray:
-    """(N,) instance label per scene point from the segmenter's masks, grouped as ``cfg.grouping`` says."""
+def group_masks(points: np.ndarray, obs: list, config: MappingConfig) -> np.ndarray:
+    """(N,) instance label per scene point from the segmenter's masks, grouped as configured."""
+    cfg = config.instances
     if cfg.grouping == "affinity":
-        return lift_by_affinity(points, obs, cfg.affinity)
+        return lift_by_affinity(points, obs, cfg.affinity, config.fusion.voxel_size)
     return mapping.lift_by_clustering(points, obs, cfg.clustering)
 
 

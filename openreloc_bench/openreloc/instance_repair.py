@@ -3,12 +3,13 @@
 View-consensus clustering (:func:`mapping.lift_by_clustering`) keeps only what a segmenter's masks
 agree on across views. On a learned segmenter's masks that leaves objects in pure but partial pieces
 (a desk as its top and legs, a wall cut at a doorway) and a sixth of the object points unassigned:
-on the validation apartments most clusters are pieces of one object. Two steps repair it:
+on the validation apartments most clusters are pieces of one object. Two optional steps repair it
+(both off by default, where affinity grouping, :mod:`affinity_grouping`, makes the instances):
 
 1. **fill** (:func:`fill_from_masks`): every 2D mask whose clustered points mostly belong to one
    instance votes that instance onto all of its points; a point joins the instance that most of the
    masks holding it vote for. Points cut off by the clustering's filters come back where the views
-   agree on them.
+   agree on them. It helps clustering; after affinity grouping it hurts.
 2. **merge** (:func:`merge_instances`): instances that touch in 3D are joined where a classifier over
    their shared border says they are one object. The features (:data:`FEATURES`) use what mapping
    has and a query does not: how often one mask holds both across the views that see both, the
@@ -19,9 +20,9 @@ on the validation apartments most clusters are pieces of one object. Two steps r
    changes. Off by default: on the validation apartments it raised instance precision but joined
    objects that localization needs apart (``docs/experiments.md``).
 
-Measured with ``openreloc-bench diagnose``: after fill, objects merged into a neighbour (mostly small
-ones the segmenter never separates from their support) are the largest error; a split step would need
-evidence the masks do not give.
+Measured with ``openreloc-bench diagnose``: with either grouping, objects merged into a neighbour
+(mostly small ones the segmenter never separates from their support) are the largest error; a split
+step would need evidence the masks do not give.
 """
 
 from __future__ import annotations
@@ -69,18 +70,21 @@ FEATURES = (
 
 @dataclass
 class RepairConfig:
-    """Repairing clustered instances (predicted track): fill, then classifier merges."""
+    """Repairing grouped instances (predicted track): fill, then classifier merges."""
 
-    fill: bool = True
-    """Re-vote every point through the 2D masks that hold it (see :func:`fill_from_masks`)."""
+    fill: bool = False
+    """Re-vote every point through the 2D masks that hold it (see :func:`fill_from_masks`). Off: it
+    repairs view-consensus clustering (``grouping: clustering``), which leaves points unassigned, but
+    after affinity grouping, which assigns them all, it hands small objects to the masks that merge
+    them into their support (docs/experiments.md)."""
     fill_purity: float = 0.6
     """A mask votes for an instance when this share of its clustered points belong to it."""
     fill_share: float = 0.5
     """A point joins an instance when at least this share of the masks holding it vote for it."""
     merge: bool = False
     """Join touching instances the merge classifier calls one object. Off: on the validation
-    apartments it raised the map's instance precision (0.41 -> 0.61 after fill) but merged objects
-    that localization needs apart (R@50 42.0 -> 36.0; docs/experiments.md)."""
+    apartments it raises the map's instance precision but merges objects that localization needs
+    apart (docs/experiments.md)."""
     merge_threshold: float = 0.85
     """...when its probability is above this."""
     merge_rounds: int = 12

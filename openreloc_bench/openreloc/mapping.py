@@ -177,10 +177,11 @@ class InstanceConfig:
     gt_box_margin: float = 0.03
     """Ground truth for the instance precision/recall: points within this distance (m) of an object's
     box in ``objects.json`` (see :func:`box_point_labels`); ~1.5 fusion voxels absorbs surface noise."""
-    grouping: Literal["clustering", "affinity"] = "clustering"
-    """How a segmenter's masks become 3D instances: 'clustering' (view consensus of whole masks,
-    :func:`lift_by_clustering`) or 'affinity' (neighbouring points held together by the views' masks,
-    :mod:`affinity_grouping`)."""
+    grouping: Literal["affinity", "clustering"] = "affinity"
+    """How a segmenter's masks become 3D instances: 'affinity' (neighbouring points held together by
+    the views' masks, :mod:`affinity_grouping`; needs the dense views of a walk-through) or
+    'clustering' (view consensus of whole masks, :func:`lift_by_clustering`; best with
+    ``repair.fill``)."""
     voting: VotingConfig = field(default_factory=VotingConfig)
     clustering: ClusteringConfig = field(default_factory=ClusteringConfig)
     affinity: AffinityConfig = field(default_factory=AffinityConfig)

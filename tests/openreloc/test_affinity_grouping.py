@@ -56,7 +56,7 @@ def two_patches_seen_noisily(n_frames: int = 20, seed: int = 0) -> tuple[np.ndar
 
 def test_affinity_grouping_repairs_moving_splits_and_occasional_merges() -> None:
     points, obs, truth = two_patches_seen_noisily()
-    labels = A.lift_by_affinity(points, obs, A.AffinityConfig(min_region_points=50))
+    labels = A.lift_by_affinity(points, obs, A.AffinityConfig(min_region_area=0.02), STEP)
     assert len(np.unique(labels)) == 2 and (labels > 0).all()
     for obj in (1, 2):
         assert len(np.unique(labels[truth == obj])) == 1
@@ -66,7 +66,7 @@ def test_a_split_every_view_agrees_on_stays_a_split() -> None:
     points = grid(20, 20)
     left = points[:, 0] < 10 * STEP
     obs = [observation(list(range(400)), [np.flatnonzero(left).tolist(), np.flatnonzero(~left).tolist()])] * 5
-    labels = A.lift_by_affinity(points, obs, A.AffinityConfig(min_region_points=50))
+    labels = A.lift_by_affinity(points, obs, A.AffinityConfig(min_region_area=0.02), STEP)
     assert len(np.unique(labels[left])) == 1 and len(np.unique(labels[~left])) == 1
     assert labels[left][0] != labels[~left][0]
 
@@ -92,7 +92,7 @@ def test_agglomeration_pools_the_whole_border_so_one_leaking_edge_does_not_merge
     np.testing.assert_array_equal(A.agglomerate(regions, edges, both, same, stop=0.05), 0)
 
 
-@pytest.mark.parametrize("bad", [{"merge_affinity": 1.5}, {"neighbour_radius": 0.0}, {"min_region_points": -1}])
+@pytest.mark.parametrize("bad", [{"merge_affinity": 1.5}, {"neighbour_radius": 0.0}, {"min_region_area": -1}])
 def test_config_refuses_out_of_range_values(bad: dict) -> None:
     with pytest.raises(ValueError):
         A.AffinityConfig(**bad)
@@ -111,6 +111,12 @@ def test_noisy_masks_of_a_rendered_room_become_its_objects(dense_room, split_pro
     segmenter = NoisyMaskSegmenter(split_prob=split_prob)
     obs = M.observe(seq, rec.points, rec.usable, M.ObservationConfig(), segmenter, False)
     truth = M.instance_sets(M.lift_by_voting(len(rec.points), obs, M.VotingConfig()), 20)
-    cfg = A.AffinityConfig(neighbour_radius=0.075, min_region_points=20)  # 1.5 voxels of 5 cm
-    q = instance_report(rec.points, M.instance_sets(A.lift_by_affinity(rec.points, obs, cfg), 20), truth)
+    labels = A.lift_by_affinity(rec.points, obs, A.AffinityConfig(min_region_area=0.05), spacing=0.05)
+    q = instance_report(rec.points, M.instance_sets(labels, 20), truth)
     assert q["recall"] >= recall and q["precision"] >= precision, q
+
+
+def test_no_points_and_no_views_give_no_instances() -> None:
+    assert A.lift_by_affinity(np.zeros((0, 3), np.float32), [], A.AffinityConfig(), 0.02).shape == (0,)
+    # nothing seen: no evidence joins any two points, and single points are too small to keep
+    assert (A.lift_by_affinity(grid(5, 5), [], A.AffinityConfig(), STEP) == 0).all()

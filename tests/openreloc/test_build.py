@@ -49,8 +49,11 @@ def test_oracle_map(seq, tmp_path: Path) -> None:
     assert (tmp_path / "map.png").stat().st_size > 10_000
 
 
-def test_segmenter_map(seq) -> None:
-    m = build_object_map(seq, CFG, MeanColorEncoder(), NoisyMaskSegmenter(split_prob=0.0), progress=False)
+def test_segmenter_map_by_clustering_and_fill(seq) -> None:
+    instances = mapping.InstanceConfig(grouping="clustering")
+    instances.repair.fill = True
+    cfg = MappingConfig(fusion=CFG.fusion, instances=instances)
+    m = build_object_map(seq, cfg, MeanColorEncoder(), NoisyMaskSegmenter(split_prob=0.0), progress=False)
     assert m.stats["instances_from"] == "segmenter"
     assert m.stats["instance_quality"]["recall"] >= 0.85
 
@@ -64,7 +67,7 @@ def test_no_masks_and_no_segmenter(seq) -> None:
 
 def test_segmenter_map_by_affinity_grouping(seq) -> None:
     instances = mapping.InstanceConfig(grouping="affinity")
-    instances.affinity.neighbour_radius, instances.affinity.min_region_points = 0.075, 20  # 5 cm voxels
+    instances.affinity.min_region_area = 0.05  # 20 points of the 5 cm grid
     cfg = MappingConfig(fusion=CFG.fusion, instances=instances)
     m = build_object_map(seq, cfg, MeanColorEncoder(), NoisyMaskSegmenter(split_prob=0.0), progress=False)
     assert m.config["instances"]["grouping"] == "affinity"

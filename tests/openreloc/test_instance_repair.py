@@ -88,6 +88,15 @@ def shelf_in_parts(tmp_path_factory: pytest.TempPathFactory) -> Path:
     )
 
 
+def clustered() -> MappingConfig:
+    """Instances by view-consensus clustering and fill, which keep the shelf's parts apart on this
+    16-view room (affinity grouping needs a denser walk-through: test_affinity_grouping)."""
+    cfg = MappingConfig()
+    cfg.instances.grouping = "clustering"
+    cfg.instances.repair.fill = True
+    return cfg
+
+
 def no_crease_classifier() -> R.MergeClassifier:
     """Joins touching instances whose border has no concave crease (parts of one box), nothing else:
     a box stands on the floor and a room's walls meet at concave edges."""
@@ -99,8 +108,7 @@ def no_crease_classifier() -> R.MergeClassifier:
 
 def test_merge_joins_the_parts_of_an_object_and_nothing_else(shelf_in_parts: Path) -> None:
     seq = Scene(shelf_in_parts).sequence("mapping")
-    cfg = MappingConfig()
-    cfg.instances.repair = R.RepairConfig(merge=False)
+    cfg = clustered()
     inst = lift_instances(seq, cfg, create_segmenter("gt", min_area=1), progress=False, boundaries=True)
     points, labels = inst.reconstruction.points, inst.labels
     truth = M.instance_sets(M.box_point_labels(points, Scene(shelf_in_parts).objects, 0.03), 20)
@@ -116,7 +124,7 @@ def test_merge_joins_the_parts_of_an_object_and_nothing_else(shelf_in_parts: Pat
 
 
 def test_scene_examples_label_the_parts_of_one_object_as_one(shelf_in_parts: Path) -> None:
-    examples = scene_examples(shelf_in_parts, create_segmenter("gt", min_area=1), MappingConfig())
+    examples = scene_examples(shelf_in_parts, create_segmenter("gt", min_area=1), clustered())
     assert examples.features.shape == (len(examples.same), len(R.FEATURES))
     assert examples.same.sum() == 2 and len(examples.same) > 5  # the shelf's parts; floor, walls, table... apart
 

@@ -50,6 +50,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--init", type=Path, default=None, help="weights directory to start from (fine-tuning); default: random"
     )
+    p.add_argument(
+        "--widths",
+        default=None,
+        help="channels of the network's stem and stages, comma-separated (default 16,24,48,96,128; "
+        "with --init: the starting weights')",
+    )
     p.add_argument("--per-split", type=int, default=12, help="frames kept per split and scene")
     p.add_argument("--width", type=int, default=640, help="render width of the generated scenes")
     p.add_argument("--height", type=int, default=480, help="render height of the generated scenes")
@@ -89,6 +95,12 @@ def run(args: argparse.Namespace) -> int:
     )  # fmt: skip
     device = training_device(args.device)  # refuse a missing GPU before generating anything
     net_cfg = load_weights(args.init)[1] if args.init else NetConfig()
+    if args.widths:
+        try:
+            widths = tuple(int(w) for w in args.widths.split(","))
+            net_cfg = NetConfig(widths=widths, work_width=net_cfg.work_width)
+        except ValueError as e:
+            raise ConfigError(f"--widths {args.widths!r}: {e}") from None
     data = args.data or args.out / "scenes"
     with paths.directory_lock(args.out, "openreloc-bench train-segmenter"):
         train_dirs, eval_dirs = scene_dirs(data / "train"), scene_dirs(data / "eval")

@@ -46,10 +46,20 @@ def test_train_segmenter_reproduces_its_weights(trained: tuple[Path, Path], tmp_
     assert (tmp_path / "again" / "model.pt").read_bytes() == (first / "model.pt").read_bytes()
 
 
+def test_train_segmenter_fine_tunes_and_takes_a_network_shape(trained: tuple[Path, Path], tmp_path: Path) -> None:
+    data, first = trained
+    assert train(data, tmp_path / "tuned", "--init", str(first)) == 0
+    card = json.loads((tmp_path / "tuned" / "card.json").read_text())
+    assert card["init"] == json.loads((first / "card.json").read_text())["id"]
+    assert train(data, tmp_path / "wide", "--widths", "8,16,24") == 0
+    assert json.loads((tmp_path / "wide" / "card.json").read_text())["net"]["widths"] == [8, 16, 24]
+
+
 @pytest.mark.parametrize(
     ("extra", "message"),
     [(["--steps", "0"], "'steps' must be >= 1"), (["--crop", "50"], "multiple of the network's stride"),
-     (["--device", "cuda:7"], "cuda"), (["--per-split", "0"], "--per-split must be >= 1")],
+     (["--device", "cuda:7"], "cuda"), (["--per-split", "0"], "--per-split must be >= 1"),
+     (["--widths", "8,x"], "--widths '8,x'"), (["--widths", "8"], "needs >= 2 positive channel counts")],
 )  # fmt: skip
 def test_train_segmenter_bad_arguments(trained: tuple[Path, Path], tmp_path: Path, capsys, extra, message) -> None:
     assert train(trained[0], tmp_path / "w", *extra) == 2

@@ -39,9 +39,11 @@ from openreloc_bench.config import check_ranges
 
 @dataclass
 class AffinityConfig:
-    """Affinity grouping of the segmenter's masks (see the module docstring)."""
+    """Affinity grouping of the segmenter's masks: two neighbouring scene points belong together in the
+    share of the views seeing both where one mask holds both; regions grow while that share, pooled
+    over their whole border, stays high."""
 
-    neighbour_radius: float = 1.5
+    neighbour_spacings: float = 1.5
     """Scene points closer than this many point spacings (the fusion voxel) are neighbours whose
     affinity is counted: 1.5 takes the diagonal neighbours of the point grid."""
     min_mask_points: int = 10
@@ -60,7 +62,7 @@ class AffinityConfig:
     def __post_init__(self) -> None:
         check_ranges(
             self,
-            positive=("neighbour_radius",),
+            positive=("neighbour_spacings",),
             non_negative=("min_mask_points", "seed_min_views", "min_region_area"),
             share=("seed_affinity", "merge_affinity"),
         )
@@ -71,7 +73,7 @@ def lift_by_affinity(points: np.ndarray, obs: list, cfg: AffinityConfig, spacing
     ``spacing``: the scene cloud's point spacing (m), the fusion voxel."""
     if len(points) == 0:
         return np.zeros(0, np.int64)
-    edges = cKDTree(points).query_pairs(cfg.neighbour_radius * spacing, output_type="ndarray")
+    edges = cKDTree(points).query_pairs(cfg.neighbour_spacings * spacing, output_type="ndarray")
     both, same = edge_evidence(len(points), obs, edges, cfg.min_mask_points)
     strong = (same >= cfg.seed_affinity * both) & (both >= max(cfg.seed_min_views, 1))
     seeds = sp.coo_matrix((np.ones(int(strong.sum())), edges[strong].T), shape=(len(points),) * 2)

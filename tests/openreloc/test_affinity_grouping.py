@@ -92,7 +92,7 @@ def test_agglomeration_pools_the_whole_border_so_one_leaking_edge_does_not_merge
     np.testing.assert_array_equal(A.agglomerate(regions, edges, both, same, stop=0.05), 0)
 
 
-@pytest.mark.parametrize("bad", [{"merge_affinity": 1.5}, {"neighbour_radius": 0.0}, {"min_region_area": -1}])
+@pytest.mark.parametrize("bad", [{"merge_affinity": 1.5}, {"neighbour_spacings": 0.0}, {"min_region_area": -1}])
 def test_config_refuses_out_of_range_values(bad: dict) -> None:
     with pytest.raises(ValueError):
         A.AffinityConfig(**bad)

@@ -3,8 +3,9 @@
 Generates scenes from the seeds reserved for training (never a benchmark or validation scene),
 builds each one's instances from the segmenter's masks as mapping does (fusion, observation,
 grouping, fill when on; ``--config`` and ``--set`` take openreloc's settings), labels every pair of
-touching instances from the scene's object boxes, and fits the logistic regression of ``openreloc/instance_repair.py``. ``--eval-scenes`` more,
-from a disjoint part of the range, give the card's held-out pair accuracy. The merge threshold is a
+touching instances from the scene's object boxes, and fits the logistic regression of
+``openreloc/instance_repair.py``. ``--eval-scenes`` more, from a disjoint part of the range, give the
+card's held-out pair accuracy. The merge threshold is a
 mapping setting, chosen on the validation suite with ``openreloc-bench diagnose``. Writes a directory
 to use as ``--set mapping.instances.repair.merger=DIR``.
 

@@ -3,8 +3,9 @@
 The predicted track's alternative to view-consensus clustering (:func:`mapping.lift_by_clustering`),
 in the spirit of superpoint methods (SAI3D, Open3DIS) but with the scene's own points as atoms:
 
-1. **Edge evidence** (:func:`edge_evidence`): for every pair of neighbouring scene points, count the frames that see both and the frames where one 2D mask holds both.
-   Their ratio is the pair's *affinity*. A segmenter that cuts an object at varying places in
+1. **Edge evidence** (:func:`edge_evidence`): for every pair of neighbouring scene points, count the
+   frames that see both and the frames where one 2D mask holds both. Their ratio is the pair's
+   *affinity*. A segmenter that cuts an object at varying places in
    different views still holds most neighbouring pairs together in most views; a true object border
    separates them in most views.
 2. **Seeds**: points joined by edges of affinity >= ``seed_affinity`` (seen together at least

@@ -184,8 +184,9 @@ def lift_instances(
     boundaries: bool = False,
 ) -> Instances:
     """Fusion, observation and 3D instances: the dataset masks voted (no segmenter), or the segmenter's
-    masks grouped (view-consensus clustering or affinity grouping) and repaired (:mod:`instance_repair`). The observations keep the
-    segmenter's boundaries and colours when the repair merges, or with ``boundaries``."""
+    masks grouped (affinity grouping or view-consensus clustering) and repaired (:mod:`instance_repair`).
+    The observations keep the segmenter's boundaries and colours when the repair merges, or with
+    ``boundaries``."""
     timer = timer or _Timer()
     with timer("fusion"):
         rec = mapping.fuse_tsdf(mapping_seq, config.fusion, progress)

@@ -190,11 +190,10 @@ def recipe_id(cfg: SegTrainConfig, net_cfg: NetConfig, scenes: Sequence[str], in
     """Hash of everything that determines the weights (a checkpoint resumes only the same recipe);
     ``init_id`` is the card id of the weights training started from ("" for a random start)."""
     recipe = {k: v for k, v in asdict(cfg).items() if k not in ("threads", "checkpoint_every")}
-    blob = {"train": recipe, "net": asdict(net_cfg), "scenes": list(scenes)}
-    if init_id:
-        blob["init"] = init_id
-    blob = json.dumps(blob, sort_keys=True)
-    return hashlib.sha256(blob.encode()).hexdigest()[:16]
+    parts = {"train": recipe, "net": asdict(net_cfg), "scenes": list(scenes)}
+    if init_id:  # absent for a random start, so that ids of earlier weights stay what they were
+        parts["init"] = init_id
+    return hashlib.sha256(json.dumps(parts, sort_keys=True).encode()).hexdigest()[:16]
 
 
 def train_boundary_net(

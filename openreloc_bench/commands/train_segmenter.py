@@ -56,11 +56,31 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="channels of the network's stem and stages, comma-separated (default 16,24,48,96,128; "
         "with --init: the starting weights')",
     )
+    p.add_argument(
+        "--work-width",
+        type=int,
+        default=None,
+        help="width the network sees, frames downscaled to it (default 320; with --init: the starting weights')",
+    )
     p.add_argument("--per-split", type=int, default=12, help="frames kept per split and scene")
     p.add_argument("--width", type=int, default=640, help="render width of the generated scenes")
     p.add_argument("--height", type=int, default=480, help="render height of the generated scenes")
     p.add_argument("--workers", type=int, default=2, help="parallel scene generation processes")
+    p.add_argument(
+        "--loader-workers",
+        type=int,
+        default=0,
+        help="processes cutting training crops ahead of the steps (0: the training process; same weights "
+        "for any number; on a GPU, give it most of the CPU cores)",
+    )
     p.add_argument("--threads", type=int, default=2, help="torch CPU threads")
+    p.add_argument(
+        "--max-minutes",
+        type=float,
+        default=0.0,
+        help="stop training after this many minutes even if --steps are not done (0: never; the card "
+        "records the steps run)",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -90,17 +110,23 @@ def run(args: argparse.Namespace) -> int:
     cfg = cfgmod.from_dict(
         SegTrainConfig,
         {"seed": args.seed, "steps": args.steps, "batch": args.batch, "crop": args.crop, "lr": args.lr,
-         "threads": args.threads, "device": args.device},
+         "threads": args.threads, "device": args.device, "loader_workers": args.loader_workers,
+         "max_seconds": 60.0 * args.max_minutes},
         "train-segmenter",
     )  # fmt: skip
     device = training_device(args.device)  # refuse a missing GPU before generating anything
     net_cfg = load_weights(args.init)[1] if args.init else NetConfig()
-    if args.widths:
-        try:
-            widths = tuple(int(w) for w in args.widths.split(","))
-            net_cfg = NetConfig(widths=widths, work_width=net_cfg.work_width)
-        except ValueError as e:
-            raise ConfigError(f"--widths {args.widths!r}: {e}") from None
+    try:
+        widths = tuple(int(w) for w in args.widths.split(",")) if args.widths else net_cfg.widths
+        net_cfg = NetConfig(
+            widths=widths, work_width=net_cfg.work_width if args.work_width is None else args.work_width
+        )
+    except ValueError as e:
+        given = [
+            f"--widths {args.widths!r}" if args.widths else "",
+            f"--work-width {args.work_width}" if args.work_width is not None else "",
+        ]
+        raise ConfigError(f"{' '.join(g for g in given if g)}: {e}") from None
     data = args.data or args.out / "scenes"
     with paths.directory_lock(args.out, "openreloc-bench train-segmenter"):
         train_dirs, eval_dirs = scene_dirs(data / "train"), scene_dirs(data / "eval")
@@ -122,8 +148,11 @@ def run(args: argparse.Namespace) -> int:
         }
         if set(seeds["train"]) & set(seeds["eval"]):
             raise ConfigError("training and evaluation scenes share seeds; evaluation must be on held-out scenes")
-        train = load_frames(train_dirs, net_cfg, args.per_split, np.random.default_rng(args.seed))
-        held = load_frames(eval_dirs, net_cfg, max(2, args.per_split // 3), np.random.default_rng(args.seed + 1))
+        threads = max(args.threads, args.loader_workers)
+        train = load_frames(train_dirs, net_cfg, args.per_split, np.random.default_rng(args.seed), threads=threads)
+        held = load_frames(
+            eval_dirs, net_cfg, max(2, args.per_split // 3), np.random.default_rng(args.seed + 1), threads=threads
+        )
         print(f"{len(train)} training frames from {len(train_dirs)} scenes; {len(held)} held-out frames", flush=True)
         t0 = time.time()
         net, info = train_boundary_net(
@@ -148,6 +177,7 @@ def run(args: argparse.Namespace) -> int:
                 "eval_frames": len(held),
             },
             "history": info["history"],
+            "steps_run": info["steps_run"],
             "train_seconds": info["train_seconds"],
             "wall_seconds": round(time.time() - t0, 1),
             "environment": {
@@ -158,6 +188,8 @@ def run(args: argparse.Namespace) -> int:
             },
         }
         save_weights(args.out, net, net_cfg, card)
+    if info["steps_run"] < cfg.steps:
+        print(f"note: training stopped at step {info['steps_run']} of {cfg.steps} (--max-minutes {args.max_minutes:g})")
     h = card["held_out"]
     print(
         f"held-out (threshold {best}): mean best IoU {h['mean_best_iou']:.3f}, AP50 {h['ap50']:.3f}, "

@@ -6,8 +6,11 @@ class-balanced binary cross-entropy plus a soft Dice term (boundaries are a few 
 Augmentation covers what separates scenes and splits: flips, scale, colour gain, gamma, and darkening
 down to the lighting-decay splits' levels with 8-bit re-quantisation, then sensor-like noise.
 
-Training is resumable: a checkpoint (network, optimiser, step, random states) is written atomically
-every ``checkpoint_every`` steps and picked up when the same recipe is run again.
+Every step's crops follow from (seed, step) alone, so they are the same whether the training process
+cuts them itself or ``loader_workers`` processes cut them ahead (a GPU trains faster than one core
+augments), and a resumed run needs no random state. Training is resumable: a checkpoint (network,
+optimiser, step) is written atomically every ``checkpoint_every`` steps and picked up when the same
+recipe is run again.
 """
 
 from __future__ import annotations
@@ -18,6 +21,7 @@ import json
 import math
 import time
 from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -26,6 +30,7 @@ import cv2
 import numpy as np
 import torch
 import torch.nn.functional as F
+from scipy.special import ndtri
 from tqdm import tqdm
 
 from openreloc_bench.data import io
@@ -73,6 +78,14 @@ class SegTrainConfig:
     """torch CPU threads."""
     device: str = "cpu"
     """torch device of the steps ("cpu", "cuda", "cuda:1"); augmentation stays on the CPU."""
+    mixed_precision: bool = True
+    """On a CUDA device, run the network in bfloat16 autocast (the CPU always trains in float32)."""
+    loader_workers: int = 0
+    """Processes that cut and augment the next batches while the device trains (0: the training process
+    cuts them itself); the batches, and so the weights, do not depend on it."""
+    max_seconds: float = 0.0
+    """Stop after this many seconds of training even if the schedule is unfinished (0: never); for
+    time-boxed machines. The card records the steps actually run."""
     checkpoint_every: int = 250
     """Steps between checkpoints (a killed run resumes from the last one)."""
 
@@ -80,6 +93,10 @@ class SegTrainConfig:
         for key in ("steps", "batch", "crop", "threads", "checkpoint_every"):
             if getattr(self, key) < 1:
                 raise ValueError(f"'{key}' must be >= 1, got {getattr(self, key)}")
+        if self.loader_workers < 0:
+            raise ValueError(f"'loader_workers' must be >= 0, got {self.loader_workers}")
+        if not (math.isfinite(self.max_seconds) and self.max_seconds >= 0):
+            raise ValueError(f"'max_seconds' must be >= 0, got {self.max_seconds}")
         for key in ("lr", "dice_weight", "max_pos_weight"):
             v = getattr(self, key)
             if not (math.isfinite(v) and v > 0):
@@ -124,31 +141,52 @@ def load_frames(
     rng: np.random.Generator,
     splits: Sequence[str] = FRAME_SPLITS,
     progress: bool = True,
+    threads: int = 4,
 ) -> FrameSet:
     """Up to ``per_split`` random frames of each split of each scene, resized to the working resolution
-    (RGB by area averaging, as the segmenter does at run time; ids by nearest neighbour)."""
-    rgbs, idss, names = [], [], []
-    for d in tqdm(list(scene_dirs), desc="frames", unit="scene", disable=not progress, leave=False):
+    (RGB by area averaging, as the segmenter does at run time; ids by nearest neighbour). The frames are
+    picked first, in order, then decoded by ``threads`` threads (the same frames for any number)."""
+    picks = []
+    for d in scene_dirs:
         scene = Scene(d)
         for split in splits:
             if split not in scene.splits():
                 continue
             seq = scene.sequence(split)
-            pick = np.sort(rng.choice(len(seq), min(per_split, len(seq)), replace=False))
-            for i in pick:
-                f = seq[int(i)]
-                if f.instance is None:
-                    raise ConfigError(f"{d}/{split}: frames without instance masks cannot train the segmenter")
-                w, h = work_size(seq.width, seq.height, net_cfg.work_width, net_cfg.stride)
-                rgbs.append(cv2.resize(f.color, (w, h), interpolation=cv2.INTER_AREA))
-                idss.append(cv2.resize(f.instance, (w, h), interpolation=cv2.INTER_NEAREST))
-                names.append(scene.name)
-    if not rgbs:
+            for i in np.sort(rng.choice(len(seq), min(per_split, len(seq)), replace=False)):
+                picks.append((scene.name, f"{d}/{split}", seq, int(i)))
+    if not picks:
         raise ConfigError("no training frames found (scenes without the expected splits?)")
-    sizes = {r.shape for r in rgbs}
+
+    def read(pick: tuple[str, str, Any, int]) -> tuple[np.ndarray, np.ndarray]:
+        _, where, seq, i = pick
+        f = seq[i]
+        if f.instance is None:
+            raise ConfigError(f"{where}: frames without instance masks cannot train the segmenter")
+        w, h = work_size(seq.width, seq.height, net_cfg.work_width, net_cfg.stride)
+        return (
+            cv2.resize(f.color, (w, h), interpolation=cv2.INTER_AREA),
+            cv2.resize(f.instance, (w, h), interpolation=cv2.INTER_NEAREST),
+        )
+
+    with ThreadPoolExecutor(max(1, threads)) as pool:  # decoding and resizing release the GIL
+        bar = tqdm(total=len(picks), desc="frames", unit="frame", disable=not progress, leave=False)
+        pairs = []
+        for pair in pool.map(read, picks):
+            pairs.append(pair)
+            bar.update(1)
+        bar.close()
+    sizes = {p[0].shape for p in pairs}
     if len(sizes) > 1:
         raise ConfigError(f"training scenes differ in aspect ratio ({sorted(sizes)}): use one frame shape")
-    return FrameSet(np.stack(rgbs), np.stack(idss).astype(np.int32), names)
+    return FrameSet(
+        np.stack([p[0] for p in pairs]), np.stack([p[1] for p in pairs]).astype(np.int32), [p[0] for p in picks]
+    )
+
+
+_NORMAL_QUANTILES = ndtri((np.arange(2**16) + 0.5) / 2**16).astype(np.float32)
+"""Standard normal samples by inverse transform of 16-bit uniforms: several times faster than numpy's
+float normals on a crop, and the sensor noise needs no finer tails."""
 
 
 def augment(
@@ -164,13 +202,46 @@ def augment(
     img, lab = img[y : y + crop, x : x + crop], lab[y : y + crop, x : x + crop]
     if rng.random() < 0.5:
         img, lab = img[:, ::-1], lab[:, ::-1]
-    f = img.astype(np.float32) / 255.0
-    f = f ** rng.uniform(0.7, 1.4) * rng.uniform(0.85, 1.15, 3).astype(np.float32)
+    # colour as one lookup table per channel (gamma, gain, darkening): cheap, and 8-bit like a camera's
+    lut = (np.arange(256) / 255.0)[:, None] ** rng.uniform(0.7, 1.4) * rng.uniform(0.85, 1.15, 3)
     if rng.random() < dark_prob:
-        f = np.round(np.clip(f * rng.uniform(0.12, 0.6), 0, 1) * 255.0) / 255.0  # dark, and 8-bit again
-    f = f + rng.normal(0.0, rng.uniform(0.0, 0.02), f.shape).astype(np.float32)
-    out = np.clip(np.round(f * 255.0), 0, 255).astype(np.uint8)
-    return np.ascontiguousarray(out), boundary_map(np.ascontiguousarray(lab))
+        lut = np.round(np.clip(lut * rng.uniform(0.12, 0.6), 0, 1) * 255.0) / 255.0  # dark, and 8-bit again
+    img = cv2.LUT(np.ascontiguousarray(img), np.clip(np.round(lut * 255.0), 0, 255).astype(np.uint8)[None])
+    gauss = _NORMAL_QUANTILES[rng.integers(0, len(_NORMAL_QUANTILES), img.shape, dtype=np.uint16)]
+    noisy = img + gauss * np.float32(rng.uniform(0.0, 0.02) * 255.0)
+    out = np.clip(np.round(noisy), 0, 255).astype(np.uint8)
+    return out, boundary_map(np.ascontiguousarray(lab))
+
+
+class StepBatches(torch.utils.data.Dataset):
+    """Step ``s``'s batch of augmented crops, drawn from a generator seeded by (seed, s) alone: the same
+    batch in any process and after any resume."""
+
+    def __init__(self, frames: FrameSet, cfg: SegTrainConfig):
+        self.frames, self.cfg = frames, cfg
+
+    def __len__(self) -> int:
+        return self.cfg.steps
+
+    def __getitem__(self, step: int) -> tuple[torch.Tensor, torch.Tensor]:
+        rng = np.random.default_rng([self.cfg.seed, step])
+        idx = rng.integers(0, len(self.frames), self.cfg.batch)
+        pairs = [augment(self.frames.rgb[i], self.frames.ids[i], self.cfg.crop, self.cfg.dark_prob, rng) for i in idx]
+        x = standardize(np.stack([p[0] for p in pairs]))
+        return x, torch.from_numpy(np.stack([p[1] for p in pairs])).float()[:, None]
+
+
+def batches_from(frames: FrameSet, cfg: SegTrainConfig, start: int) -> torch.utils.data.DataLoader:
+    """Steps ``start`` .. ``steps - 1`` in order, cut by ``cfg.loader_workers`` processes (or inline)."""
+    workers = cfg.loader_workers
+    return torch.utils.data.DataLoader(
+        StepBatches(frames, cfg),
+        batch_size=None,
+        sampler=range(start, cfg.steps),
+        num_workers=workers,
+        prefetch_factor=4 if workers else None,
+        pin_memory=cfg.device.startswith("cuda"),
+    )
 
 
 def boundary_loss(logit: torch.Tensor, target: torch.Tensor, cfg: SegTrainConfig) -> torch.Tensor:
@@ -189,8 +260,10 @@ def boundary_loss(logit: torch.Tensor, target: torch.Tensor, cfg: SegTrainConfig
 def recipe_id(cfg: SegTrainConfig, net_cfg: NetConfig, scenes: Sequence[str], init_id: str = "") -> str:
     """Hash of everything that determines the weights (a checkpoint resumes only the same recipe);
     ``init_id`` is the card id of the weights training started from ("" for a random start)."""
-    recipe = {k: v for k, v in asdict(cfg).items() if k not in ("threads", "checkpoint_every")}
-    parts = {"train": recipe, "net": asdict(net_cfg), "scenes": list(scenes)}
+    same_weights = ("threads", "checkpoint_every", "loader_workers", "max_seconds")
+    recipe = {k: v for k, v in asdict(cfg).items() if k not in same_weights}
+    # "batches": crops drawn per (seed, step); weights of the earlier single-stream sampling have ids without it
+    parts = {"train": recipe, "net": asdict(net_cfg), "scenes": list(scenes), "batches": "per-step"}
     if init_id:  # absent for a random start, so that ids of earlier weights stay what they were
         parts["init"] = init_id
     return hashlib.sha256(json.dumps(parts, sort_keys=True).encode()).hexdigest()[:16]
@@ -213,7 +286,6 @@ def train_boundary_net(
     device = training_device(cfg.device)
     torch.set_num_threads(cfg.threads)
     torch.manual_seed(cfg.seed)
-    rng = np.random.default_rng(cfg.seed)
     net = BoundaryNet(net_cfg)
     init_id = ""
     if init is not None:
@@ -222,7 +294,9 @@ def train_boundary_net(
             raise ConfigError(f"{init}: its network ({start_cfg}) is not the one to train ({net_cfg})")
         net.load_state_dict(start.state_dict())
         init_id = start_card.get("id", "")
-    net = net.to(device)
+    cuda = device.type == "cuda"
+    net = net.to(device, memory_format=torch.channels_last if cuda else torch.contiguous_format)
+    torch.backends.cudnn.benchmark = cuda
     opt = torch.optim.AdamW(net.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
     rid = recipe_id(cfg, net_cfg, sorted(set(frames.scene)), init_id)
     step, history, seconds = 0, [], 0.0
@@ -232,8 +306,6 @@ def train_boundary_net(
             net.load_state_dict(state["net"])
             opt.load_state_dict(state["opt"])
             step, history, seconds = state["step"], state["history"], state["seconds"]
-            rng.bit_generator.state = state["rng"]
-            torch.set_rng_state(state["torch_rng"])
             log(f"resumed from step {step} of {cfg.steps}")
         else:
             log("checkpoint is from another recipe: starting over")
@@ -246,36 +318,46 @@ def train_boundary_net(
 
     net.train()
     t0, window = time.perf_counter(), []
+    autocast = torch.autocast("cuda", torch.bfloat16, enabled=cuda and cfg.mixed_precision)
     with tqdm(total=cfg.steps, initial=step, desc="train segmenter", unit="step") as bar:
-        while step < cfg.steps:
-            idx = rng.integers(0, len(frames), cfg.batch)
-            pairs = [augment(frames.rgb[i], frames.ids[i], cfg.crop, cfg.dark_prob, rng) for i in idx]
-            x = standardize(np.stack([p[0] for p in pairs])).to(device)
-            y = torch.from_numpy(np.stack([p[1] for p in pairs])).float()[:, None].to(device)
+        for x, y in batches_from(frames, cfg, step):
+            x = x.to(device, non_blocking=True, memory_format=torch.channels_last if cuda else torch.contiguous_format)
+            y = y.to(device, non_blocking=True)
             for g in opt.param_groups:
                 g["lr"] = lr_at(step)
-            loss = boundary_loss(net(x), y, cfg)
+            with autocast:
+                logit = net(x)
+            loss = boundary_loss(logit.float(), y, cfg)
             opt.zero_grad(set_to_none=True)
             loss.backward()
             opt.step()
             step += 1
-            window.append(loss.item())
+            window.append(loss.detach())
             bar.update(1)
-            if step % cfg.checkpoint_every == 0 or step == cfg.steps:
-                history.append({"step": step, "loss": round(float(np.mean(window)), 5)})
+            out_of_time = cfg.max_seconds > 0 and seconds + time.perf_counter() - t0 > cfg.max_seconds
+            if step % cfg.checkpoint_every == 0 or step == cfg.steps or out_of_time:
+                history.append({"step": step, "loss": round(float(torch.stack(window).mean()), 5)})
                 bar.set_postfix(loss=history[-1]["loss"])
                 window = []
                 if checkpoint is not None:
-                    _save_checkpoint(checkpoint, net, opt, step, history, seconds + time.perf_counter() - t0, rng, rid)
+                    _save_checkpoint(checkpoint, net, opt, step, history, seconds + time.perf_counter() - t0, rid)
+            if out_of_time:
+                log(f"stopped at step {step} of {cfg.steps}: max_seconds {cfg.max_seconds:g} reached")
+                break
     net.eval()
-    info = {"history": history, "train_seconds": round(seconds + time.perf_counter() - t0, 1), "recipe": rid}
+    info = {
+        "history": history,
+        "train_seconds": round(seconds + time.perf_counter() - t0, 1),
+        "recipe": rid,
+        "steps_run": step,
+    }
     if init_id:
         info["init"] = init_id
-    return net.cpu(), info
+    return net.cpu().to(memory_format=torch.contiguous_format), info
 
 
 def _save_checkpoint(
-    path: Path, net: BoundaryNet, opt: Any, step: int, history: list, seconds: float, rng: Any, rid: str
+    path: Path, net: BoundaryNet, opt: Any, step: int, history: list, seconds: float, rid: str
 ) -> None:
     buf = _io.BytesIO()
     torch.save(
@@ -285,8 +367,6 @@ def _save_checkpoint(
             "step": step,
             "history": history,
             "seconds": seconds,
-            "rng": rng.bit_generator.state,
-            "torch_rng": torch.get_rng_state(),
             "recipe": rid,
         },
         buf,

@@ -51,15 +51,23 @@ def test_train_segmenter_fine_tunes_and_takes_a_network_shape(trained: tuple[Pat
     assert train(data, tmp_path / "tuned", "--init", str(first)) == 0
     card = json.loads((tmp_path / "tuned" / "card.json").read_text())
     assert card["init"] == json.loads((first / "card.json").read_text())["id"]
-    assert train(data, tmp_path / "wide", "--widths", "8,16,24") == 0
-    assert json.loads((tmp_path / "wide" / "card.json").read_text())["net"]["widths"] == [8, 16, 24]
+    assert train(data, tmp_path / "wide", "--widths", "8,16,24", "--work-width", "64") == 0
+    assert json.loads((tmp_path / "wide" / "card.json").read_text())["net"] == {"widths": [8, 16, 24], "work_width": 64}
+
+
+def test_train_segmenter_crop_processes_give_the_same_weights(trained: tuple[Path, Path], tmp_path: Path) -> None:
+    data, first = trained
+    assert train(data, tmp_path / "ahead", "--loader-workers", "2") == 0
+    assert (tmp_path / "ahead" / "model.pt").read_bytes() == (first / "model.pt").read_bytes()
 
 
 @pytest.mark.parametrize(
     ("extra", "message"),
     [(["--steps", "0"], "'steps' must be >= 1"), (["--crop", "50"], "multiple of the network's stride"),
      (["--device", "cuda:7"], "cuda"), (["--per-split", "0"], "--per-split must be >= 1"),
-     (["--widths", "8,x"], "--widths '8,x'"), (["--widths", "8"], "needs >= 2 positive channel counts")],
+     (["--widths", "8,x"], "--widths '8,x'"), (["--widths", "8"], "needs >= 2 positive channel counts"),
+     (["--work-width", "16"], "'work_width' must be >= 32"), (["--loader-workers", "-1"], "'loader_workers' must be >= 0"),
+     (["--max-minutes", "-1"], "'max_seconds' must be >= 0")],
 )  # fmt: skip
 def test_train_segmenter_bad_arguments(trained: tuple[Path, Path], tmp_path: Path, capsys, extra, message) -> None:
     assert train(trained[0], tmp_path / "w", *extra) == 2

@@ -83,6 +83,14 @@ def frames(tmp_path_factory: pytest.TempPathFactory):
     return load_frames(dirs, NET, per_split=3, rng=np.random.default_rng(0), progress=False)
 
 
+def test_frames_do_not_depend_on_the_reading_threads(tmp_path: Path) -> None:
+    dirs = [write_shapes_scene(tmp_path / f"s{i}", seed=i, frames=3, hw=(64, 96)) for i in range(2)]
+    one = load_frames(dirs, NET, per_split=2, rng=np.random.default_rng(3), progress=False, threads=1)
+    four = load_frames(dirs, NET, per_split=2, rng=np.random.default_rng(3), progress=False, threads=4)
+    assert np.array_equal(one.rgb, four.rgb) and np.array_equal(one.ids, four.ids) and one.scene == four.scene
+    assert one.scene == ["s0"] * 6 + ["s1"] * 6  # 3 splits x 2 frames per scene, in scene order
+
+
 def test_training_lowers_the_loss(frames) -> None:
     cfg = SegTrainConfig(steps=60, batch=4, crop=48, lr=1e-2, warmup_steps=5, threads=1, checkpoint_every=20)
     _, info = train_boundary_net(frames, NET, cfg, log=lambda m: None)
@@ -100,6 +108,26 @@ def test_fine_tuning_starts_from_the_given_weights(frames, tmp_path: Path) -> No
     assert tuned["history"][0]["loss"] < scratch["history"][0]["loss"]
     with pytest.raises(ConfigError, match="is not the one to train"):
         train_boundary_net(frames, NetConfig(widths=(8, 8, 16), work_width=128), short, init=tmp_path / "w")
+
+
+def test_crop_processes_do_not_change_the_weights(frames) -> None:
+    cfg = SegTrainConfig(steps=3, batch=2, crop=32, warmup_steps=1, threads=1, checkpoint_every=2)
+    inline, info = train_boundary_net(frames, NET, cfg, log=lambda m: None)
+    workers = SegTrainConfig(**{**cfg.__dict__, "loader_workers": 2})
+    ahead, info_ahead = train_boundary_net(frames, NET, workers, log=lambda m: None)
+    assert info["recipe"] == info_ahead["recipe"]
+    for a, b in zip(inline.state_dict().values(), ahead.state_dict().values()):
+        assert torch.equal(a, b)
+
+
+def test_max_seconds_stops_the_run_and_says_where(frames) -> None:
+    cfg = SegTrainConfig(steps=50, batch=2, crop=32, threads=1, checkpoint_every=20, max_seconds=1e-9)
+    logs: list[str] = []
+    _, info = train_boundary_net(frames, NET, cfg, log=logs.append)
+    assert info["steps_run"] == 1 and info["history"][-1]["step"] == 1
+    assert logs == ["stopped at step 1 of 50: max_seconds 1e-09 reached"]
+    with pytest.raises(ValueError, match="'loader_workers' must be >= 0"):
+        SegTrainConfig(loader_workers=-1)
 
 
 def test_a_resumed_run_ends_with_the_weights_of_an_uninterrupted_one(frames, tmp_path: Path, monkeypatch) -> None:

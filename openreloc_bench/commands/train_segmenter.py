@@ -35,8 +35,9 @@ THRESHOLDS = (0.05, 0.1, 0.2, 0.3, 0.4, 0.5)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    # the shipped weights (vision/weights/segmenter/card.json): these defaults on data-v1 scenes, then
-    # fine-tuned on data-v2 scenes with --init (those weights) --lr 1e-3 --steps 3000
+    # the defaults are a CPU recipe; the shipped weights (vision/weights/segmenter/card.json) are a GPU
+    # run: --device cuda --scenes 90 --widths 24,36,72,144,192 --batch 32 --steps 5600, then --init (those
+    # weights) --seed 1 --scenes 40 --lr 1e-3 --steps 7600, held out on seed 0's scenes (docs/experiments.md)
     p.add_argument("--out", type=Path, required=True, help="weights directory to write")
     p.add_argument("--seed", type=int, default=0, help="training seed (also picks the scene seeds)")
     p.add_argument("--device", default="cpu", help="torch device of the training steps: cpu, cuda, cuda:N")

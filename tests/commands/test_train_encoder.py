@@ -119,7 +119,9 @@ def test_fine_tuning_on_a_segmenters_crops_reports_before_and_after(trained: tup
     ev = json.loads((tmp_path / "ft" / "evaluation.json").read_text())
     cfg = json.loads((tmp_path / "ft" / "config.json").read_text())
     assert cfg["data"]["crops_cut_by"] == "learned" and cfg["data"]["init"] == str(first)
-    assert {"zero_shot_top1", "instance_recall1_within_scene"} <= set(ev["init"])
+    # the same held-out crops scored before and after (which metrics exist depends on the crops the
+    # shipped segmenter cuts from these toy scenes, not on the fine-tuning)
+    assert "zero_shot_top1" in ev["init"] and set(ev["init"]) == set(ev) - {"init"}
 
 
 def test_fine_tuning_from_another_tower_shape_is_refused(trained: tuple[Path, Path], tmp_path: Path, capsys) -> None:

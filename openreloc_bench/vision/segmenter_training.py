@@ -170,12 +170,8 @@ def load_frames(
         )
 
     with ThreadPoolExecutor(max(1, threads)) as pool:  # decoding and resizing release the GIL
-        bar = tqdm(total=len(picks), desc="frames", unit="frame", disable=not progress, leave=False)
-        pairs = []
-        for pair in pool.map(read, picks):
-            pairs.append(pair)
-            bar.update(1)
-        bar.close()
+        frames = pool.map(read, picks)
+        pairs = list(tqdm(frames, total=len(picks), desc="frames", unit="frame", disable=not progress, leave=False))
     sizes = {p[0].shape for p in pairs}
     if len(sizes) > 1:
         raise ConfigError(f"training scenes differ in aspect ratio ({sorted(sizes)}): use one frame shape")
@@ -231,8 +227,9 @@ class StepBatches(torch.utils.data.Dataset):
         return x, torch.from_numpy(np.stack([p[1] for p in pairs])).float()[:, None]
 
 
-def batches_from(frames: FrameSet, cfg: SegTrainConfig, start: int) -> torch.utils.data.DataLoader:
-    """Steps ``start`` .. ``steps - 1`` in order, cut by ``cfg.loader_workers`` processes (or inline)."""
+def batches_from(frames: FrameSet, cfg: SegTrainConfig, start: int, pin_memory: bool) -> torch.utils.data.DataLoader:
+    """Steps ``start`` .. ``steps - 1`` in order, cut by ``cfg.loader_workers`` processes (or inline);
+    ``pin_memory`` for a CUDA device."""
     workers = cfg.loader_workers
     return torch.utils.data.DataLoader(
         StepBatches(frames, cfg),
@@ -240,7 +237,7 @@ def batches_from(frames: FrameSet, cfg: SegTrainConfig, start: int) -> torch.uti
         sampler=range(start, cfg.steps),
         num_workers=workers,
         prefetch_factor=4 if workers else None,
-        pin_memory=cfg.device.startswith("cuda"),
+        pin_memory=pin_memory,
     )
 
 
@@ -295,7 +292,8 @@ def train_boundary_net(
         net.load_state_dict(start.state_dict())
         init_id = start_card.get("id", "")
     cuda = device.type == "cuda"
-    net = net.to(device, memory_format=torch.channels_last if cuda else torch.contiguous_format)
+    memory_format = torch.channels_last if cuda else torch.contiguous_format
+    net = net.to(device, memory_format=memory_format)
     torch.backends.cudnn.benchmark = cuda
     opt = torch.optim.AdamW(net.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
     rid = recipe_id(cfg, net_cfg, sorted(set(frames.scene)), init_id)
@@ -320,8 +318,8 @@ def train_boundary_net(
     t0, window = time.perf_counter(), []
     autocast = torch.autocast("cuda", torch.bfloat16, enabled=cuda and cfg.mixed_precision)
     with tqdm(total=cfg.steps, initial=step, desc="train segmenter", unit="step") as bar:
-        for x, y in batches_from(frames, cfg, step):
-            x = x.to(device, non_blocking=True, memory_format=torch.channels_last if cuda else torch.contiguous_format)
+        for x, y in batches_from(frames, cfg, step, pin_memory=cuda):
+            x = x.to(device, non_blocking=True, memory_format=memory_format)
             y = y.to(device, non_blocking=True)
             for g in opt.param_groups:
                 g["lr"] = lr_at(step)

@@ -14,13 +14,18 @@ in the spirit of superpoint methods (SAI3D, Open3DIS) but with the scene's own p
    pooled over all edges of their shared border (sum of "held together" over sum of "seen together")
    stays >= ``merge_affinity``. Pooling over the whole border makes a few leaking edges harmless,
    which connected components at one threshold are not (one chain of bad edges joins two objects).
-4. **Absorption**: regions smaller than ``min_region_area`` (slivers along mask borders) join the
+4. **Structural planes** (:mod:`plane_split`): regions holding a wall or floor plane keep it, and
+   what stands out of it (a sink the views never cut from its wall) becomes regions of its own.
+5. **Absorption**: regions smaller than ``min_region_area`` (slivers along mask borders) join the
    large neighbour they have the highest pooled affinity with, or are left unassigned if they touch
    none.
+6. **Supports** (:mod:`plane_split`): small parts standing on a region's top surface (a mug the views
+   never cut from its cabinet) become regions of their own, after the absorption, which would hand
+   them back.
 
 Every point the views see in masks ends in an instance, so nothing is lost to consensus filters. What
-the segmenter never separates in any view (a mug it always merges into the table) stays merged, and
-parts of one object that no view sees side by side (a floor broken by furniture where the walk-through
+the segmenter never separates in any view stays merged unless the geometry separates it (steps 4
+and 6), and parts of one object that no view sees side by side (a floor broken by furniture where the walk-through
 is sparse) stay apart: the evidence is only between neighbouring points, so the grouping needs the
 dense views of a walk-through (hundreds of frames), not a handful.
 """
@@ -28,7 +33,7 @@ dense views of a walk-through (hundreds of frames), not a handful.
 from __future__ import annotations
 
 import heapq
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
@@ -36,6 +41,12 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from openreloc_bench.config import check_ranges
+from openreloc_bench.openreloc.plane_split import (
+    PlaneSplitConfig,
+    SupportSplitConfig,
+    split_off_planes,
+    split_off_supported,
+)
 
 
 @dataclass
@@ -59,6 +70,10 @@ class AffinityConfig:
     min_region_area: float = 0.08
     """Regions of fewer points than cover this area (m^2) at the point spacing join their best large
     neighbour (slivers along mask borders)."""
+    planes: PlaneSplitConfig = field(default_factory=PlaneSplitConfig)
+    """Splitting objects off the structural planes (walls, floors) they were grouped with."""
+    supports: SupportSplitConfig = field(default_factory=SupportSplitConfig)
+    """Splitting small objects off the furniture tops they stand on."""
 
     def __post_init__(self) -> None:
         check_ranges(
@@ -80,7 +95,9 @@ def lift_by_affinity(points: np.ndarray, obs: list, cfg: AffinityConfig, spacing
     seeds = sp.coo_matrix((np.ones(int(strong.sum())), edges[strong].T), shape=(len(points),) * 2)
     regions = connected_components(seeds, directed=False)[1]
     regions = agglomerate(regions, edges, both, same, cfg.merge_affinity)
+    regions = split_off_planes(points, regions, edges, cfg.planes, spacing)
     regions = absorb_small(regions, edges, both, same, round(cfg.min_region_area / spacing**2))
+    regions = split_off_supported(points, regions, edges, cfg.supports, spacing)
     labels = np.zeros(len(points), np.int64)
     kept = regions >= 0
     _, first, inverse = np.unique(regions[kept], return_index=True, return_inverse=True)

@@ -21,8 +21,9 @@ on the validation apartments most clusters are pieces of one object. Two optiona
    objects that localization needs apart (``docs/experiments.md``).
 
 Measured with ``openreloc-bench diagnose``: with either grouping, objects merged into a neighbour
-(mostly small ones the segmenter never separates from their support) are the largest error; a split
-step would need evidence the masks do not give.
+(mostly small ones the segmenter never separates from their support) are the largest error. The
+masks hold no evidence against such merges; affinity grouping splits objects off walls and floors
+with the depth's (:mod:`plane_split`).
 """
 
 from __future__ import annotations

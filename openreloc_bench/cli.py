@@ -1,6 +1,7 @@
 """``openreloc-bench``: one sub-command per module in :mod:`openreloc_bench.commands` (hloc style).
 
-Each command module defines ``NAME``, ``HELP``, ``add_arguments(parser)`` and ``run(args) -> int``.
+Each command module defines ``NAME``, ``HELP``, ``add_arguments(parser)`` and ``run(args) -> int``;
+``--plugin`` (:func:`~openreloc_bench.commands.options.add_plugin_argument`) is imported before ``run``.
 User mistakes (:class:`~openreloc_bench.errors.OpenRelocError`) and file operations the system
 refuses (``OSError``: read-only file system, permissions, disk full) are printed as one line with a
 non-zero exit (``-v`` keeps the traceback of the latter); anything else is a bug and keeps its traceback.
@@ -17,6 +18,7 @@ import sys
 from types import ModuleType
 
 from openreloc_bench import __version__, commands
+from openreloc_bench.commands.options import load_plugin_arguments
 from openreloc_bench.errors import OpenRelocError
 
 log = logging.getLogger("openreloc_bench")
@@ -67,6 +69,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 2
     try:
+        load_plugin_arguments(args)  # before the command: its methods are then registered
         return int(args._run(args) or 0)
     except OpenRelocError as e:
         print(f"openreloc-bench {args.command}: error: {e}", file=sys.stderr)

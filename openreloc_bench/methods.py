@@ -85,6 +85,11 @@ def register(name: str, factory: Callable[..., Relocalizer]) -> None:
     _REGISTRY[name] = factory
 
 
+def registered() -> dict[str, Callable[..., Relocalizer]]:
+    """The in-process registrations (:func:`register`) by name: a copy."""
+    return dict(_REGISTRY)
+
+
 def available_methods() -> dict[str, Callable[..., Relocalizer]]:
     """All method factories by name: entry points first, then in-process registrations."""
     found: dict[str, Callable[..., Relocalizer]] = {}

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -40,3 +42,31 @@ def write_tiny_scene(
 @pytest.fixture
 def tiny_scene(tmp_path: Path) -> Path:
     return write_tiny_scene(tmp_path / "tiny")
+
+
+FREE_PLUGIN = """
+from baselines.nearest_frame import NearestFrame
+from openreloc_bench.methods import register
+
+
+class Free(NearestFrame):
+    name = "free-plugin"
+
+
+register("free-plugin", Free)
+"""
+"""A plugin registering ``free-plugin``: nearest-frame under another name, declaring it reads no masks."""
+
+
+@pytest.fixture
+def plugin_sandbox(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[Path]:
+    """A folder for plugin files (``tmp_path``); what they register and import is forgotten after the test."""
+    from openreloc_bench import methods
+
+    monkeypatch.setattr(methods, "_REGISTRY", dict(methods._REGISTRY))
+    monkeypatch.setattr(sys, "path", list(sys.path))
+    yield tmp_path
+    for name, module in list(sys.modules.items()):
+        file = getattr(module, "__file__", None)
+        if file and Path(file).resolve().is_relative_to(tmp_path.resolve()):
+            del sys.modules[name]

@@ -20,6 +20,7 @@ import numpy as np
 import pandas as pd
 
 from openreloc_bench import config
+from openreloc_bench.commands.options import add_plugin_argument
 from openreloc_bench.data import io
 from openreloc_bench.errors import ConfigError
 
@@ -40,6 +41,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scene", help="scene directory, or a scene name of --suite (default: the suite's first)")
     p.add_argument("--suite", help="suite YAML or bundled suite name (default: smoke)")
     p.add_argument("--method", help="relocalization method in the loop (default: the environment's)")
+    add_plugin_argument(p)
     p.add_argument(
         "--set",
         dest="overrides",

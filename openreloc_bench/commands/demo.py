@@ -17,6 +17,7 @@ import argparse
 import shlex
 from pathlib import Path
 
+from openreloc_bench.commands.options import add_plugin_argument
 from openreloc_bench.errors import ConfigError
 
 NAME = "demo"
@@ -30,6 +31,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", type=Path, default=Path("runs/demo"), help="output directory (default: runs/demo)")
     p.add_argument("--suite", type=Path, default=SMOKE_SUITE, help="suite YAML (default: the smoke suite)")
     p.add_argument("--methods", default="openreloc,nearest-frame", help="comma-separated registered methods")
+    add_plugin_argument(p)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -39,7 +41,8 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError(f"suite file {args.suite} not found (run from a checkout, or pass --suite)")
     steps = [
         ["eval", "--suite", str(args.suite), "--methods", args.methods, "--data", str(args.out / "data"),
-         "--out", str(args.out / "results"), "--robustness", "--resume"],
+         "--out", str(args.out / "results"), "--robustness", "--resume",
+         *(x for spec in args.plugin for x in ("--plugin", spec))],
         ["leaderboard", str(args.out / "results"), "--out", str(args.out / "leaderboard")],
     ]  # fmt: skip
     for argv in steps:

@@ -19,6 +19,7 @@ import math
 from pathlib import Path
 
 from openreloc_bench import config
+from openreloc_bench.commands.options import add_plugin_argument
 from openreloc_bench.data import paths
 from openreloc_bench.data.scene import QUERY_SPLITS
 from openreloc_bench.errors import ConfigError
@@ -70,13 +71,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         metavar="NAME=YAML",
         help="config overrides for one method from a YAML mapping (repeatable)",
     )
-    p.add_argument(
-        "--plugin",
-        action="append",
-        default=[],
-        metavar="MODULE",
-        help="import MODULE first (registers methods with openreloc_bench.methods.register)",
-    )
+    add_plugin_argument(p)
 
 
 def _csv(s: str, flag: str) -> list[str]:
@@ -140,7 +135,6 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError("--splits: 'mapping' builds the maps; localizing its own frames measures nothing")
     if args.robustness:
         splits += [r.key for r in ROBUSTNESS_ROWS if r.key not in splits]
-    runner.import_plugins(args.plugin)
     runs = method_runs(_csv(args.methods, "--methods"), args.method_config, args.ablations)
     seeds = _seeds(args.seeds)
     runner.seeded_runs(runs, seeds)  # unknown methods and bad settings fail here, before scenes are generated

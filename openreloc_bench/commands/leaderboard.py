@@ -2,12 +2,17 @@
 a markdown table, a CSV, a static HTML page with sortable columns, and plots (cumulative
 translation / rotation error curves, per-scene recall bars, top-down ground truth vs estimates, recall
 against each query's difficulty, whose numbers go to difficulty.csv).
+
+Methods that read no masks stand in both tracks' tables; --plugin registers a plugin's methods, so that
+the board knows whether they do.
 """
 
 from __future__ import annotations
 
 import argparse
 from pathlib import Path
+
+from openreloc_bench.commands.options import add_plugin_argument
 
 NAME = "leaderboard"
 HELP = "render the leaderboard (markdown, CSV, HTML, plots) from results"
@@ -17,6 +22,7 @@ ORDER = 50
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("results", type=Path, nargs="+", metavar="RESULTS", help="results directories")
     p.add_argument("--out", type=Path, default=Path("leaderboard"), help="output directory (default: leaderboard/)")
+    add_plugin_argument(p)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -13,7 +13,7 @@ import argparse
 import dataclasses
 
 from openreloc_bench import config
-from openreloc_bench.commands.options import add_method_config_arguments, method_overrides
+from openreloc_bench.commands.options import add_method_config_arguments, add_plugin_argument, method_overrides
 from openreloc_bench.methods import create_method
 
 NAME = "config"
@@ -23,6 +23,7 @@ ORDER = 91
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("method", metavar="METHOD", help="registered method name (see `openreloc-bench methods`)")
+    add_plugin_argument(p)
     add_method_config_arguments(p)
 
 

@@ -1,9 +1,14 @@
-"""List the relocalization methods registered through the ``openreloc_bench.methods`` entry points."""
+"""List the registered relocalization methods: the ``openreloc_bench.methods`` entry points, and what
+``--plugin`` modules or files register.
+
+  openreloc-bench methods --plugin ./hist_nn.py
+"""
 
 from __future__ import annotations
 
 import argparse
 
+from openreloc_bench.commands.options import add_plugin_argument
 from openreloc_bench.methods import available_methods
 
 NAME = "methods"
@@ -12,10 +17,11 @@ ORDER = 90
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    pass
+    add_plugin_argument(parser)
 
 
 def run(args: argparse.Namespace) -> int:
     for name, factory in sorted(available_methods().items()):
-        print(f"{name:30s} {factory.__doc__ or ''}")
+        doc = (factory.__doc__ or "").strip().splitlines()
+        print(f"{name:30s} {doc[0] if doc else f'registered by {factory.__module__}'}")
     return 0

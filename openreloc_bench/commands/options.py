@@ -6,13 +6,33 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from openreloc_bench import config
+from openreloc_bench import config, plugins
 
 
 def add_method_arguments(p: argparse.ArgumentParser) -> None:
-    """``--method``, ``--config`` and ``--set``: shared by ``map`` and ``localize``."""
+    """``--method``, ``--plugin``, ``--config`` and ``--set``: shared by ``map`` and ``localize``."""
     p.add_argument("--method", required=True, help="registered method name (see `openreloc-bench methods`)")
+    add_plugin_argument(p)
     add_method_config_arguments(p)
+
+
+def add_plugin_argument(p: argparse.ArgumentParser) -> None:
+    """``--plugin``: every command that names a method (the CLI imports them before the command runs)."""
+    p.add_argument(
+        "--plugin",
+        action="append",
+        default=[],
+        metavar="MODULE|FILE",
+        help="a module name or a .py file (a path relative to the working folder) whose import registers "
+        "methods with openreloc_bench.methods.register; imported first; repeatable",
+    )
+
+
+def load_plugin_arguments(args: argparse.Namespace) -> None:
+    """Import the ``--plugin``s of ``args`` (none for commands without the option), each replaced by the
+    form worker processes import it by; a bad plugin is a one-line ConfigError."""
+    if getattr(args, "plugin", None):
+        args.plugin = plugins.load_plugins(args.plugin)
 
 
 def add_method_config_arguments(p: argparse.ArgumentParser) -> None:

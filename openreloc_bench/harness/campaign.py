@@ -19,7 +19,7 @@ from typing import Any
 
 import pandas as pd
 
-from openreloc_bench import config
+from openreloc_bench import config, plugins
 from openreloc_bench.data import io, paths
 from openreloc_bench.data.scene import QUERY_SPLITS
 from openreloc_bench.errors import ConfigError, DataError
@@ -67,7 +67,8 @@ class CampaignPlan:
     """Methods whose jobs run one at a time under the local executor: each trains with every core, and
     beside another job it is several times slower."""
     plugins: list[str] = field(default_factory=list)
-    """Modules to import first (methods registered with ``openreloc_bench.methods.register``)."""
+    """Plugins to import first: module names or ``.py`` files relative to the working directory, whose
+    import registers methods with ``openreloc_bench.methods.register``."""
 
 
 @dataclass(frozen=True)
@@ -101,7 +102,7 @@ def check_plan(plan: CampaignPlan) -> None:
     """One-line errors for a plan that cannot run, before any work."""
     from generators.spec import load_suite
 
-    runner.import_plugins(plan.plugins)
+    plugins.load_plugins(plan.plugins)
     for what, names in (("suites", plan.suites), ("methods", plan.methods), ("tracks", plan.tracks)):
         if not names or len(set(names)) != len(names):
             raise ConfigError(f"plan: '{what}' must name at least one entry, each once")

@@ -18,7 +18,6 @@ fails that query with the exception as reason. Either way the run goes on.
 
 from __future__ import annotations
 
-import importlib
 import logging
 import os
 import time
@@ -33,7 +32,7 @@ import numpy as np
 import pandas as pd
 from tqdm import tqdm
 
-from openreloc_bench import bars, geometry
+from openreloc_bench import bars, geometry, plugins
 from openreloc_bench.data import io, paths
 from openreloc_bench.data.results import write_results, write_tum
 from openreloc_bench.data.scene import Scene
@@ -129,15 +128,6 @@ class QueryJob:
         return self.out_dir / f"{self.split}.done.json"
 
 
-def import_plugins(modules: list[str]) -> None:
-    """Import modules that register methods with ``methods.register`` (needed again in every worker)."""
-    for name in modules:
-        try:
-            importlib.import_module(name)
-        except Exception as e:  # noqa: BLE001 -- the user's module: missing, or failing as it runs
-            raise ConfigError(f"cannot import plugin module '{name}' ({type(e).__name__}: {e})") from None
-
-
 # --------------------------------------------------------------------------------------------
 # One query
 # --------------------------------------------------------------------------------------------
@@ -170,7 +160,7 @@ def localize_one(method: Relocalizer, query: QueryFrame) -> Outcome:
 
 
 def _load_method(job: QueryJob) -> tuple[Relocalizer, SceneSequence, float]:
-    import_plugins(job.plugins)
+    plugins.load_plugins(job.plugins)
     method = create_method(job.run.method, **job.run.overrides)
     t0 = time.perf_counter()
     method.load_map(job.map_dir)
@@ -323,7 +313,7 @@ def _build_map_child(conn: Any, job: MapJob, parent_pid: int) -> None:
 
 def _build_map(job: MapJob) -> dict[str, Any]:
     try:
-        import_plugins(job.plugins)
+        plugins.load_plugins(job.plugins)
         method = create_method(job.run.method, **job.run.overrides)
         paths.check_output(job.map_dir, [job.scene_dir], "map directory")
         mapping = Scene(job.scene_dir).sequence("mapping")
@@ -415,7 +405,8 @@ class EvalConfig:
     map_timeout_s: float = 3600.0
     """Limit on building one map, and on loading it in a query worker, in seconds (0 = no limit)."""
     plugins: list[str] = field(default_factory=list)
-    """Modules to import first (methods registered with ``methods.register``)."""
+    """Plugins to import first, in this process and every worker: module names or ``.py`` files
+    (:mod:`openreloc_bench.plugins`)."""
     seeds: list[int] = field(default_factory=list)
     """Run every variant whose method has a ``seed`` setting once per seed (one seed's recall moves by
     points on a few hundred queries); deterministic methods run once. Empty: each run's own config."""
@@ -451,7 +442,7 @@ def plan(cfg: EvalConfig) -> tuple[list[MapJob], list[QueryJob]]:
     """Validate everything up front (methods, configs, scenes, splits, track) and list the jobs."""
     if cfg.track not in TRACKS:
         raise ConfigError(f"unknown track '{cfg.track}' (known: {', '.join(TRACKS)})")
-    import_plugins(cfg.plugins)
+    plugin_specs = plugins.load_plugins(cfg.plugins)  # as the workers import them
     commit = cache.git_commit()
     scenes, sizes = {}, {}
     for name in cfg.scenes:
@@ -494,7 +485,7 @@ def plan(cfg: EvalConfig) -> tuple[list[MapJob], list[QueryJob]]:
             }
             map_jobs.append(
                 MapJob(
-                    run, scene.root, map_dir, spec, masks, cfg.map_timeout_s, prov, cfg.plugins, sizes[name, "mapping"]
+                    run, scene.root, map_dir, spec, masks, cfg.map_timeout_s, prov, plugin_specs, sizes[name, "mapping"]
                 )
             )
             for split in cfg.splits:
@@ -512,7 +503,7 @@ def plan(cfg: EvalConfig) -> tuple[list[MapJob], list[QueryJob]]:
                         cfg.timeout_s,
                         cfg.map_timeout_s,
                         prov,
-                        cfg.plugins,
+                        plugin_specs,
                         sizes[name, split],
                     )
                 )

@@ -59,4 +59,4 @@ def test_a_plugin_that_fails_as_it_is_imported_is_one_line(world: World, capsys,
     (world.inputs / "broken_plugin.py").write_text("raise RuntimeError('no licence server')\n")
     monkeypatch.syspath_prepend(str(world.inputs))
     code, _, err = run(eval_argv(world, "--plugin", "broken_plugin"), capsys)
-    one_line_error(code, err, "eval", "cannot import plugin module 'broken_plugin' (RuntimeError: no licence server)")
+    one_line_error(code, err, "eval", "plugin broken_plugin: broken_plugin.py line 1: RuntimeError: no licence server")

@@ -21,11 +21,11 @@ from openreloc_bench.errors import ConfigError
 
 ENTRY_POINT_GROUP = "openreloc_bench.methods"
 TRACKS = ("oracle-mask", "predicted")
-MASK_FREE = "mask-free"
-"""What stands for the track where it makes no difference: the maps and results of methods that read no
-masks (``uses_masks = False``) serve both tracks."""
 """Oracle-mask: queries and mapping frames carry the dataset's instance masks (a perfect detector).
 Predicted: neither does; a method segments for itself."""
+MASK_FREE = "mask-free"
+"""What stands for the track where it makes no difference: the maps and results of methods that read no
+masks (``uses_masks = False``) serve both tracks, and are recorded under this track."""
 
 
 @dataclass
@@ -116,6 +116,12 @@ def uses_masks(name: str) -> bool:
     for ep in entry_points(group=ENTRY_POINT_GROUP, name=name):
         return bool(getattr(ep.load(), "uses_masks", True))
     return True
+
+
+def recorded_track(method: Relocalizer, track: str) -> str:
+    """The track ``method``'s maps and results belong to when run on ``track``: ``MASK_FREE`` for a method
+    that declares it reads no masks (``uses_masks = False``; it is then given none), else ``track``."""
+    return track if getattr(method, "uses_masks", True) else MASK_FREE
 
 
 def create_method(name: str, **config: Any) -> Relocalizer:

@@ -3,9 +3,12 @@ import pytest
 from baselines.nearest_frame import NearestFrame
 from openreloc_bench.errors import ConfigError
 from openreloc_bench.methods import (
+    MASK_FREE,
+    TRACKS,
     Relocalizer,
     available_methods,
     create_method,
+    recorded_track,
     register,
     uses_masks,
 )
@@ -35,3 +38,9 @@ def test_in_process_registration():
 def test_methods_read_masks_unless_they_say_otherwise() -> None:
     assert uses_masks("openreloc") and uses_masks("no-such-method")
     assert not uses_masks("nearest-frame")
+
+
+@pytest.mark.parametrize("track", TRACKS)
+def test_the_recorded_track_follows_the_method_declaration(track: str) -> None:
+    assert recorded_track(create_method("nearest-frame"), track) == MASK_FREE  # uses_masks = False
+    assert recorded_track(object(), track) == track  # says nothing: reads masks

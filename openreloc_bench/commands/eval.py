@@ -3,7 +3,9 @@ once per scene (cached by method config + scene spec hash), localize every query
 splits, score them and write pose files, TUM exports and metric tables under RESULTS.
 
 Results are resumable (--resume skips finished (scene, method, split) jobs) and record the method's
-full config, the track, the scene spec hashes and the git commit. --seeds repeats every seeded method
+full config, the track, the scene spec hashes and the git commit. The track recorded is --track, or
+mask-free for a method that declares it reads no masks (``uses_masks = False``): it is given none, and
+its results stand for both tracks. --seeds repeats every seeded method
 once per seed (the maps are shared) and reports each metric's spread over the seeds. Jobs run inline,
 on a local process pool (--workers N) or on Ray (--executor ray; RAY_ADDRESS or --ray-address selects
 a cluster).

@@ -3,8 +3,10 @@ a markdown table, a CSV, a static HTML page with sortable columns, and plots (cu
 translation / rotation error curves, per-scene recall bars, top-down ground truth vs estimates, recall
 against each query's difficulty, whose numbers go to difficulty.csv).
 
-Methods that read no masks stand in both tracks' tables; --plugin registers a plugin's methods, so that
-the board knows whether they do.
+Each row stands under the track its run recorded: mask-free for a method that declared it reads no
+masks (its rows stand in both tracks' tables). Results written before tracks were recorded that way
+are read by the earlier rule, the method's declaration as registered now: --plugin registers a
+plugin's methods for that.
 """
 
 from __future__ import annotations

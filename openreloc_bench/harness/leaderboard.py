@@ -135,11 +135,15 @@ def _by_track(b: pd.DataFrame) -> list[tuple[str, pd.DataFrame]]:
     return tables
 
 
-def mask_free_as_own_track(q: pd.DataFrame) -> pd.DataFrame:
-    """The queries of methods that read no masks under the track ``MASK_FREE``: their rows stand in both
-    tracks' tables, one run per query (the last, when they were run on both tracks)."""
-    free = [m for m in q["method"].unique() if not uses_masks(m)]
-    return _last_run_per_query(q.assign(track=q["track"].mask(q["method"].isin(free), MASK_FREE)))
+def recorded_tracks(q: pd.DataFrame) -> pd.DataFrame:
+    """The queries under the track their run recorded (``MASK_FREE`` for methods that declared they read
+    no masks: their rows stand in both tracks' tables), one run per query. Tables written before the
+    track was recorded that way (no ``uses_masks`` value) are read by the rule the board used then: a
+    method registered here as reading no masks (``leaderboard --plugin`` registers a plugin's) is
+    ``MASK_FREE``, any other keeps its track."""
+    legacy = q["uses_masks"].isna() if "uses_masks" in q else pd.Series(True, index=q.index)
+    free = {m for m in q.loc[legacy, "method"].unique() if not uses_masks(m)}
+    return _last_run_per_query(q.assign(track=q["track"].mask(legacy & q["method"].isin(free), MASK_FREE)))
 
 
 def robustness_drops(b: pd.DataFrame) -> pd.DataFrame:
@@ -529,7 +533,7 @@ def plot_topdown(q: pd.DataFrame, scene: str, path: Path) -> None:
 
 def write_leaderboard(results: list[Path], out: Path) -> list[Path]:
     """Render everything into ``out`` (never inside or around a results directory); returns the files written."""
-    q = mask_free_as_own_track(pool_seeds(load_queries(results)))  # pooled first: seeded runs carry the method's name
+    q = recorded_tracks(pool_seeds(load_queries(results)))  # pooled first: seeded runs carry the method's name
     for r in results:
         paths.check_output(out, [r], "--out")
     scenes, suite = build_tables(q, load_maps(results))

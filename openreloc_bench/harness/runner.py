@@ -9,7 +9,9 @@ variant, scene), then one :class:`QueryJob` per (method variant, scene, split). 
                                          <split>.done.json     provenance + timings, written LAST
 
 each atomically, the marker last: a job is finished exactly when its marker exists, so ``--resume``
-skips it and a killed run never leaves a file that a resumed run would trust half-written.
+skips it and a killed run never leaves a file that a resumed run would trust half-written. ``<track>``
+is the one recorded for the method: ``mask-free`` for a method that declares it reads no masks, whose
+results then stand for both tracks (:func:`openreloc_bench.methods.recorded_track`).
 
 A query runs in a child "query server" process when a per-query timeout is set, so a method that
 hangs can be abandoned (the child is killed and restarted for the next query); a method that raises
@@ -58,6 +60,8 @@ from openreloc_bench.methods import (
     create_method,
     map_config,
     method_config,
+    recorded_track,
+    uses_masks,
 )
 
 log = logging.getLogger(__name__)
@@ -97,7 +101,8 @@ class MapJob:
     map_dir: Path
     spec_hash: str
     track: str
-    """The mapping frames carry the dataset's instance masks only in the oracle-mask track."""
+    """The mapping frames carry the dataset's instance masks only in the oracle-mask track (never in
+    ``mask-free``)."""
     timeout_s: float
     """Limit on building the map, in seconds; 0 = none (built in the job's own process)."""
     provenance: dict[str, Any]
@@ -112,6 +117,7 @@ class QueryJob:
     scene_dir: Path
     split: str
     track: str
+    """The recorded track: the queries carry the dataset's instance masks only in ``oracle-mask``."""
     map_dir: Path
     out_dir: Path
     timeout_s: float
@@ -432,12 +438,6 @@ class EvalReport:
     """Of ``wall_s``, the time spent building maps."""
 
 
-def map_track(method: Relocalizer, track: str) -> str:
-    """Which masks a method's map is built from: the track's, or none for methods that ignore masks
-    (``uses_masks = False``), whose maps then serve both tracks."""
-    return track if getattr(method, "uses_masks", True) else MASK_FREE
-
-
 def plan(cfg: EvalConfig) -> tuple[list[MapJob], list[QueryJob]]:
     """Validate everything up front (methods, configs, scenes, splits, track) and list the jobs."""
     if cfg.track not in TRACKS:
@@ -465,8 +465,8 @@ def plan(cfg: EvalConfig) -> tuple[list[MapJob], list[QueryJob]]:
     for run, method in seeded_runs(cfg.runs, cfg.seeds):
         mcfg = method_config(method)
         chash = cache.config_hash(mcfg)
-        masks = map_track(method, cfg.track)
-        map_hash = cache.config_hash({**map_config(method), "masks": masks})
+        track = recorded_track(method, cfg.track)  # also which masks the map is built from
+        map_hash = cache.config_hash({**map_config(method), "masks": track})
         for name, scene in scenes.items():
             spec = scene.spec_hash
             # rebuilt (removed first) when stale: confined to the cache, whatever a plugin names its method
@@ -482,22 +482,21 @@ def plan(cfg: EvalConfig) -> tuple[list[MapJob], list[QueryJob]]:
                 "scene": name,
                 "spec_hash": spec,
                 "git_commit": commit,
+                "uses_masks": track != MASK_FREE,
             }
             map_jobs.append(
                 MapJob(
-                    run, scene.root, map_dir, spec, masks, cfg.map_timeout_s, prov, plugin_specs, sizes[name, "mapping"]
+                    run, scene.root, map_dir, spec, track, cfg.map_timeout_s, prov, plugin_specs, sizes[name, "mapping"]
                 )
             )
             for split in cfg.splits:
-                out_dir = paths.confined(
-                    cfg.out / "runs" / run.label / cfg.track / name, cfg.out / "runs", "run folder"
-                )
+                out_dir = paths.confined(cfg.out / "runs" / run.label / track / name, cfg.out / "runs", "run folder")
                 query_jobs.append(
                     QueryJob(
                         run,
                         scene.root,
                         split,
-                        cfg.track,
+                        track,
                         map_dir,
                         out_dir,
                         cfg.timeout_s,
@@ -644,7 +643,8 @@ def _progress(desc: str, unit: str, total: int, per_item: bool = False) -> Itera
 
 
 def load_run_queries(out: Path) -> pd.DataFrame:
-    """Every finished job's per-query rows under ``out/runs``, with the job's provenance columns."""
+    """Every finished job's per-query rows under ``out/runs``, with the job's provenance columns and
+    ``uses_masks``; where two jobs answered the same query on the same recorded track, the later one."""
     frames = []
     for marker in sorted((out / "runs").glob("*/*/*/*.done.json")):
         rec = io.read_json(marker)
@@ -653,12 +653,30 @@ def load_run_queries(out: Path) -> pd.DataFrame:
             raise DataError(marker, f"no '{missing[0]}': not a finished job's marker (remove it to recompute the job)")
         df = read_query_csv(marker.with_name(f"{rec['split']}.queries.csv"), QUERY_COLUMNS)
         df.insert(0, "map_hash", rec.get("map_hash", rec["config_hash"]))  # older runs keyed maps by the full config
+        rec = {**rec, **marker_track(rec)}
         for key in MARKER_KEYS:
             df.insert(0, key, rec[key])
+        df["uses_masks"] = rec["uses_masks"]
         df["variant"] = rec.get("variant", rec["method"])  # runs from before seeds: their own variant
         df["seed"] = pd.array([rec.get("seed")] * len(df), dtype="Int64")
+        df["_finished"] = rec.get("finished", "")
         frames.append(backfill_difficulty(df))
-    return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
+    if not frames:
+        return pd.DataFrame()
+    q = pd.concat(frames, ignore_index=True).sort_values("_finished", kind="stable")
+    q = q.drop_duplicates(["method", "track", "scene", "split", "query"], keep="last").sort_index()
+    return q.drop(columns="_finished").reset_index(drop=True)
+
+
+def marker_track(rec: dict[str, Any]) -> dict[str, Any]:
+    """A finished job's recorded ``track`` and ``uses_masks``. Markers written before the track was
+    recorded from the method's declaration (no ``uses_masks``) name the track the run was asked for:
+    a method registered here as reading no masks is read as ``mask-free`` (the rule the board applied
+    when drawing them), any other keeps its track."""
+    if "uses_masks" in rec:
+        return {"track": rec["track"], "uses_masks": bool(rec["uses_masks"])}
+    masks = uses_masks(rec.get("registry_name", rec["method"]))
+    return {"track": rec["track"] if masks else MASK_FREE, "uses_masks": masks}
 
 
 def load_map_records(out: Path) -> pd.DataFrame:

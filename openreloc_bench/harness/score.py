@@ -17,6 +17,7 @@ from openreloc_bench.data.results import hloc_name, read_submission
 from openreloc_bench.data.scene import DIFFICULTY_COLUMNS, Scene
 from openreloc_bench.data.types import SceneSequence
 from openreloc_bench.errors import DataError
+from openreloc_bench.methods import MASK_FREE
 
 QUERY_COLUMNS = (
     "query", "success", "t_err_m", "r_err_deg", "runtime_s", "reason",
@@ -216,5 +217,6 @@ def score_submission(
             }
             for i, (k, v) in enumerate(meta.items()):
                 df.insert(i, k, v)
+            df["uses_masks"] = track != MASK_FREE  # the track as the submitter declared it
             frames.append(df)
     return pd.concat(frames, ignore_index=True)

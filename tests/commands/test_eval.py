@@ -59,9 +59,10 @@ def test_eval_prints_a_metrics_table(data: Path, tmp_path: Path, capsys: pytest.
             f"test-oracle={cfg}",
         )
     )
-    out = capsys.readouterr().out
+    out = " ".join(capsys.readouterr().out.split())
     assert rc == 0
-    assert "R@50cm%" in out and "nearest-frame" in out and "test-oracle" in out
+    assert "R@50cm%" in out and "test-oracle oracle-mask query" in out
+    assert "nearest-frame mask-free query" in out  # declares it reads no masks
     q = load_run_queries(tmp_path / "r")
     assert (q[q.method == "test-oracle"]["t_err_m"].round(6) == 0.3).all()
 

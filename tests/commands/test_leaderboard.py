@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import shutil
 import sys
 from pathlib import Path
 
@@ -11,9 +12,11 @@ import pytest
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "harness"))
 from harness_test_methods import make_scene, perturb  # noqa: E402
 
+from openreloc_bench import methods  # noqa: E402
 from openreloc_bench.cli import main  # noqa: E402
 from openreloc_bench.data.results import write_results  # noqa: E402
 from openreloc_bench.data.scene import Scene  # noqa: E402
+from tests.conftest import FREE_PLUGIN  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -127,3 +130,49 @@ def test_leaderboard_heads_with_the_predicted_track(results: tuple[Path, Path], 
     assert md.index("## Per scene: query (predicted track)") < md.index("## Per scene: query (oracle-mask track)")
     page = (out / "index.html").read_text()
     assert page.count('<table class="sortable">') == 2 and page.index("Predicted track") < page.index("Oracle-mask")
+
+
+def _free_plugin_run(data: Path, folder: Path) -> Path:
+    """Results of ``free-plugin`` (a plugin file declaring it reads no masks) on the oracle-mask track; the
+    plugin is then forgotten, as by a leaderboard rendered in another process."""
+    (folder / "free_plugin.py").write_text(FREE_PLUGIN)
+    args = ["eval", "--scenes", "s1", "--data", str(data), "--out", str(folder / "res"), "--timeout", "0"]
+    assert (
+        main([*args, "--methods", "free-plugin", "--track", "oracle-mask", "--plugin", str(folder / "free_plugin.py")])
+        == 0
+    )
+    del sys.modules["free_plugin"]
+    del methods._REGISTRY["free-plugin"]  # the sandbox's copy of the registry
+    assert "free-plugin" not in methods.available_methods()
+    return folder / "res"
+
+
+def test_a_plugin_reading_no_masks_is_drawn_mask_free_from_its_recorded_track(
+    results: tuple[Path, Path], plugin_sandbox: Path
+) -> None:
+    res = _free_plugin_run(results[1], plugin_sandbox)
+    assert main(["leaderboard", str(res), "--out", str(plugin_sandbox / "board")]) == 0
+    md = (plugin_sandbox / "board" / "leaderboard.md").read_text()
+    assert "| free-plugin | mask-free | query |" in md and "| free-plugin | oracle-mask |" not in md
+
+
+@pytest.mark.parametrize(("plugin", "track"), [(False, "oracle-mask"), (True, "mask-free")])
+def test_tables_from_before_recorded_tracks_are_read_by_the_registered_declaration(
+    results: tuple[Path, Path], plugin_sandbox: Path, plugin: bool, track: str
+) -> None:
+    """Without ``uses_masks`` in the table: a method registered as reading no masks is mask-free (the
+    plugin's only with --plugin), any other keeps the track it was run on."""
+    root, data = results
+    res = _free_plugin_run(data, plugin_sandbox)
+    old = shutil.copytree(root / "res", plugin_sandbox / "old")
+    for r in (res, old):
+        table = r / "tables" / "queries.csv"
+        q = pd.read_csv(table).drop(columns="uses_masks")
+        q["track"] = q["track"].replace("mask-free", "oracle-mask")  # as an older eval wrote it
+        q.to_csv(table, index=False)
+    extra = ["--plugin", str(plugin_sandbox / "free_plugin.py")] if plugin else []
+    board = plugin_sandbox / "board"
+    assert main(["leaderboard", str(res), str(old), "--out", str(board), *extra]) == 0
+    md = (board / "leaderboard.md").read_text()
+    assert f"| free-plugin | {track} | query |" in md
+    assert "| nearest-frame | mask-free | query |" in md and "| test-oracle | oracle-mask | query |" in md

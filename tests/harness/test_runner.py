@@ -92,6 +92,63 @@ def test_maps_of_mask_free_methods_serve_both_tracks(data_dir: Path, tmp_path: P
     assert runner.evaluate(cfg(data_dir, tmp_path, [free, masked])).maps_built == 4
     predicted = runner.evaluate(cfg(data_dir, tmp_path, [free, masked], track="predicted"))
     assert (predicted.maps_built, predicted.maps_cached) == (2, 2)  # test-oracle reads masks: maps of its own
+    assert sorted(p.name for p in (tmp_path / "runs" / "nearest-frame").iterdir()) == ["mask-free"]
+    q = runner.load_run_queries(tmp_path)
+    runs = q.groupby(["method", "track"])["query"].count().to_dict()
+    assert runs == {
+        ("nearest-frame", "mask-free"): 6,
+        ("test-oracle", "oracle-mask"): 6,
+        ("test-oracle", "predicted"): 6,
+    }
+    assert q.set_index("method")["uses_masks"].groupby(level=0).unique().map(list).to_dict() == {
+        "nearest-frame": [False],
+        "test-oracle": [True],
+    }
+
+
+@pytest.mark.parametrize("track", ["oracle-mask", "predicted"])
+def test_a_method_declaring_no_masks_is_given_none_and_recorded_mask_free(
+    data_dir: Path, tmp_path: Path, track: str
+) -> None:
+    run = MethodRun("free", "test-oracle-mask-free", {"expect_track": "predicted"})  # raises if given masks
+    assert runner.evaluate(cfg(data_dir, tmp_path, [run], track=track)).errors == []
+    marker = io.read_json(tmp_path / "runs" / "free" / "mask-free" / "sA" / "query.done.json")
+    assert (marker["track"], marker["uses_masks"]) == ("mask-free", False)
+    assert "track mask-free" in (tmp_path / "runs" / "free" / "mask-free" / "sA" / "query.txt").read_text()
+    q = runner.load_run_queries(tmp_path)
+    assert q["success"].all() and set(q["track"]) == {"mask-free"}
+    _, suite, _ = tables.write_tables(tmp_path / "tables", q, runner.load_map_records(tmp_path))
+    assert "free mask-free query" in " ".join(tables.compact(suite).split())
+
+
+def _as_legacy(marker: Path, track: str) -> None:
+    """``marker`` as a run of ``track`` wrote it before tracks were recorded from the method's declaration."""
+    rec = io.read_json(marker)
+    del rec["uses_masks"]
+    io.write_json(marker, {**rec, "track": track, "finished": "2020-01-01T00:00:00+00:00"})
+
+
+def test_markers_from_before_recorded_tracks_read_by_the_method_declaration(data_dir: Path, tmp_path: Path) -> None:
+    runs = [MethodRun("nearest-frame", "nearest-frame"), MethodRun("test-oracle", "test-oracle")]
+    assert runner.evaluate(cfg(data_dir, tmp_path, runs)).errors == []
+    old = tmp_path / "runs" / "nearest-frame" / "predicted"
+    (tmp_path / "runs" / "nearest-frame" / "mask-free").rename(old)  # where an older eval put it
+    for marker in old.glob("*/*.done.json"):
+        _as_legacy(marker, "predicted")
+    for marker in (tmp_path / "runs" / "test-oracle").glob("*/*/*.done.json"):
+        _as_legacy(marker, "oracle-mask")
+    q = runner.load_run_queries(tmp_path)
+    tracks = q.groupby("method")[["track", "uses_masks"]].agg(lambda c: sorted(set(c))).to_dict("index")
+    assert tracks == {
+        "nearest-frame": {"track": ["mask-free"], "uses_masks": [False]},  # registered as reading no masks
+        "test-oracle": {"track": ["oracle-mask"], "uses_masks": [True]},
+    }
+    # the same queries run again, now under the recorded track: the later run's rows, once
+    again = MethodRun("nearest-frame", "nearest-frame", {"thumb_size": 8})
+    assert runner.evaluate(cfg(data_dir, tmp_path, [again], track="predicted")).errors == []
+    new = io.read_json(tmp_path / "runs" / "nearest-frame" / "mask-free" / "sA" / "query.done.json")
+    free = runner.load_run_queries(tmp_path).query("method == 'nearest-frame'")
+    assert len(free) == 6 and set(free["config_hash"]) == {new["config_hash"]}
 
 
 def test_raise_failure_and_hang_fail_one_query_each_and_the_run_goes_on(data_dir: Path, tmp_path: Path) -> None:

@@ -44,20 +44,26 @@ def test_the_predicted_track_gives_no_method_an_instance_image(
     assert not any(seen["queries"])
 
 
-def test_the_oracle_track_gives_the_dataset_masks(data_dir: Path, tmp_path: Path, monkeypatch) -> None:
+@pytest.mark.parametrize(("name", "given"), [("test-oracle", True), ("nearest-frame", False)])
+def test_the_oracle_track_gives_the_dataset_masks_to_methods_that_read_them(
+    name: str, given: bool, data_dir: Path, tmp_path: Path, monkeypatch
+) -> None:
+    """A method declaring ``uses_masks = False`` gets none: its results are recorded for both tracks."""
     seen: list[bool] = []
     create = runner.create_method
 
     def spy(method: str, **overrides):
         m = create(method, **overrides)
-        localize = m.localize
+        build, localize = m.build_map, m.localize
+        m.build_map = lambda mapping, d: (seen.append(mapping.has_instances), build(mapping, d))[1]
         m.localize = lambda q: (seen.append(q.instance is not None), localize(q))[1]
         return m
 
     monkeypatch.setattr(runner, "create_method", spy)
+    run = MethodRun(name, name)
     runner.evaluate(
         EvalConfig(
-            data=data_dir, out=tmp_path, scenes=["sA"], runs=[MethodRun("nearest-frame", "nearest-frame")], timeout_s=0
+            data=data_dir, out=tmp_path, scenes=["sA"], runs=[run], track="oracle-mask", timeout_s=0, map_timeout_s=0
         )
     )
-    assert seen and all(seen)
+    assert len(seen) == 4 and set(seen) == {given}  # the map, then three queries

@@ -330,7 +330,7 @@ def test_scenes_given_as_absolute_paths_under_data_are_used_not_deleted(world: W
 def test_resume_recomputes_jobs_run_with_other_settings_or_scenes(world: World, capsys) -> None:
     argv = eval_argv(world, "--resume")
     assert run(argv, capsys)[0] == 0
-    marker = world.tmp / "res" / "runs" / "nearest-frame" / "oracle-mask" / "sA" / "query.done.json"
+    marker = world.tmp / "res" / "runs" / "nearest-frame" / "mask-free" / "sA" / "query.done.json"
     assert json.loads(marker.read_text())["method_config"]["config"]["thumb_size"] == 32
     code, out, _ = run(argv, capsys)
     assert code == 0 and "1 resumed" in out and "recomputed" not in out

@@ -14,7 +14,7 @@ def eval_argv(w: World, *extra: str) -> list[str]:
 
 def test_a_damaged_job_marker_is_recomputed_on_resume(world: World, capsys) -> None:
     assert run(eval_argv(world), capsys)[0] == 0
-    marker = world.tmp / "res" / "runs" / "nearest-frame" / "oracle-mask" / "sA" / "query.done.json"
+    marker = world.tmp / "res" / "runs" / "nearest-frame" / "mask-free" / "sA" / "query.done.json"
     marker.write_text("{")  # as a full disk or an editor leaves it
     code, out, err = run(eval_argv(world, "--resume"), capsys)
     assert code == 0 and "jobs: 1 run, 0 resumed" in out, err

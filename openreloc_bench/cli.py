@@ -29,10 +29,25 @@ def command_modules() -> list[ModuleType]:
     return sorted((m for m in mods if hasattr(m, "NAME")), key=lambda m: getattr(m, "ORDER", 50))
 
 
+class HelpFormatter(argparse.RawDescriptionHelpFormatter):
+    """Keeps the descriptions' line breaks and ends each option's help with its default, ``(default:
+    VALUE)``, unless the help gives it already (in the same words) or there is none (None, off, empty)."""
+
+    def _get_help_string(self, action: argparse.Action) -> str | None:
+        text = action.help or ""
+        d = action.default
+        unset = d is None or d is False or d is argparse.SUPPRESS or (isinstance(d, (str, list)) and not d)
+        named = action.option_strings or action.nargs in (argparse.OPTIONAL, argparse.ZERO_OR_MORE)
+        if unset or not named or "(default: " in text:
+            return action.help
+        return f"{text} (default: %(default)s)".lstrip()
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="openreloc-bench",
         description="Object-level indoor camera relocalization: scene generator, OpenReLoc, baselines, harness.",
+        formatter_class=HelpFormatter,
     )
     parser.add_argument("--version", action="version", version=f"openreloc-bench {__version__}")
     parser.add_argument(
@@ -40,9 +55,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for mod in command_modules():
-        p = sub.add_parser(
-            mod.NAME, help=mod.HELP, description=mod.__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
-        )
+        p = sub.add_parser(mod.NAME, help=mod.HELP, description=mod.__doc__, formatter_class=HelpFormatter)
         mod.add_arguments(p)
         p.set_defaults(_run=mod.run)
     return parser

@@ -33,11 +33,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "env_id", metavar="ENV_ID", help="ActiveReloc-v0 or ObjectGoal-v0 (the openreloc/ prefix is optional)"
     )
-    p.add_argument(
-        "--agent", choices=("random", "scripted"), default="scripted", help="which agent (default: scripted)"
-    )
-    p.add_argument("--episodes", type=int, default=10, help="number of episodes (default: 10)")
-    p.add_argument("--seed", type=int, default=0, help="episode e resets with seed SEED + e (default: 0)")
+    p.add_argument("--agent", choices=("random", "scripted"), default="scripted", help="which agent")
+    p.add_argument("--episodes", type=int, default=10, help="number of episodes")
+    p.add_argument("--seed", type=int, default=0, help="episode e resets with seed SEED + e")
     p.add_argument("--scene", help="scene directory, or a scene name of --suite (default: the suite's first)")
     p.add_argument("--suite", help="suite YAML or bundled suite name (default: smoke)")
     p.add_argument("--method", help="relocalization method in the loop (default: the environment's)")

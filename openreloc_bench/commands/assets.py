@@ -21,13 +21,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--gallery",
         type=Path,
         default=None,
-        help="gallery PNG (default ./<pack directory name>_gallery.png, never inside the pack)",
+        help="gallery PNG, never inside the pack (default: ./<pack directory name>_gallery.png)",
     )
     parser.add_argument(
         "--backend",
         choices=["mujoco", "pyrender"],
         default="mujoco",
-        help="renderer of the gallery (default mujoco)",
+        help="renderer of the gallery",
     )
     parser.add_argument(
         "--example", action="store_true", help="write the example pack into PACK first (a new directory)"

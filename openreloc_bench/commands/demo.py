@@ -28,7 +28,7 @@ SMOKE_SUITE = Path(__file__).resolve().parents[2] / "scenes" / "smoke.yaml"
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--out", type=Path, default=Path("runs/demo"), help="output directory (default: runs/demo)")
+    p.add_argument("--out", type=Path, default=Path("runs/demo"), help="output directory")
     p.add_argument("--suite", type=Path, default=SMOKE_SUITE, help="suite YAML (default: the smoke suite)")
     p.add_argument("--methods", default="openreloc,nearest-frame", help="comma-separated registered methods")
     add_plugin_argument(p)

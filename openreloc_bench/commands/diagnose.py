@@ -31,9 +31,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     where.add_argument("--scenes", help="comma-separated scene directories")
     where.add_argument("--suite", type=Path, help="suite YAML whose scenes lie under --data")
     p.add_argument("--data", type=Path, help="dataset directory of --suite")
-    p.add_argument("--track", default="predicted", choices=("predicted", "oracle-mask"), help="default: predicted")
-    p.add_argument("--splits", default="query", help="comma-separated query splits (default: query)")
-    p.add_argument("--frames", type=int, default=12, help="frames per split whose segmentation is scored (12)")
+    p.add_argument(
+        "--track",
+        default="predicted",
+        choices=("predicted", "oracle-mask"),
+        help="predicted: the method's segmenter on map and queries; oracle-mask: the dataset's masks",
+    )
+    p.add_argument("--splits", default="query", help="comma-separated query splits")
+    p.add_argument("--frames", type=int, default=12, help="frames per split whose segmentation is scored")
     p.add_argument("--no-localize", action="store_true", help="segmentation and map only")
     p.add_argument("--swap", action="store_true", help="also localize with the dataset's masks on one side")
     p.add_argument("--work", type=Path, required=True, help="folder for the maps (reused while unchanged)")

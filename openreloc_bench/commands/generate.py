@@ -24,7 +24,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="reuse finished frames of an interrupted run (without it, existing scenes of the same spec are regenerated)",
     )
-    parser.add_argument("--workers", type=int, default=1, help="scenes generated in parallel (default 1)")
+    parser.add_argument("--workers", type=int, default=1, help="scenes generated in parallel")
     parser.add_argument("--scenes", type=str, default=None, help="comma-separated scene names (default: all)")
 
 

@@ -23,7 +23,7 @@ ORDER = 50
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("results", type=Path, nargs="+", metavar="RESULTS", help="results directories")
-    p.add_argument("--out", type=Path, default=Path("leaderboard"), help="output directory (default: leaderboard/)")
+    p.add_argument("--out", type=Path, default=Path("leaderboard"), help="output directory")
     add_plugin_argument(p)
 
 

@@ -43,7 +43,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_method_arguments(p)
     p.add_argument("--map", type=Path, required=True, help="map directory (from `openreloc-bench map`)")
     p.add_argument("--scene", type=Path, required=True, help="scene directory")
-    p.add_argument("--split", default="query", choices=QUERY_SPLITS, help="query split (default: query)")
+    p.add_argument("--split", default="query", choices=QUERY_SPLITS, help="query split")
     p.add_argument("--out", type=Path, required=True, help="result file to write")
     p.add_argument(
         "--track",

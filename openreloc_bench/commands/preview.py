@@ -24,10 +24,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--out",
         type=Path,
         default=None,
-        help="contact sheet PNG (default ./<scene name>_preview.png, never inside the scene); the plan goes "
+        help="contact sheet PNG (default: ./<scene name>_preview.png, never inside the scene); the plan goes "
         "next to it as *_plan.png",
     )
-    parser.add_argument("--frames", type=int, default=4, help=f"sample frames per split, 1-{MAX_FRAMES} (default 4)")
+    parser.add_argument("--frames", type=int, default=4, help=f"sample frames per split, 1-{MAX_FRAMES}")
 
 
 def run(args: argparse.Namespace) -> int:

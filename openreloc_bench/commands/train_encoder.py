@@ -47,7 +47,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--scenes", type=int, default=210, help="training scenes to generate")
     parser.add_argument("--eval-scenes", type=int, default=10, help="held-out scenes for evaluation")
     parser.add_argument("--epochs", type=int, default=6, help="training epochs")
-    parser.add_argument("--data", type=Path, default=None, help="scene folder (train/, eval/); default OUT/scenes")
+    parser.add_argument("--data", type=Path, default=None, help="scene folder (train/, eval/) (default: OUT/scenes)")
     parser.add_argument("--views", type=int, default=3, help="views kept per object and split (random frames)")
     parser.add_argument("--width", type=int, default=320, help="render width of generated training scenes")
     parser.add_argument("--height", type=int, default=240, help="render height of generated training scenes")

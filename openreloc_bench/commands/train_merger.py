@@ -39,7 +39,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scenes", type=int, default=12, help="training scenes to generate")
     p.add_argument("--eval-scenes", type=int, default=3, help="held-out scenes for the card's pair accuracy")
     p.add_argument(
-        "--data", type=Path, default=None, help="scene folder (train/, eval/; generated when empty); default OUT/scenes"
+        "--data",
+        type=Path,
+        default=None,
+        help="scene folder (train/, eval/; generated when empty) (default: OUT/scenes)",
     )
     p.add_argument(
         "--segmenter", default=None, help="segmenter whose masks the instances come from; default: the method config's"

@@ -43,25 +43,25 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--device", default="cpu", help="torch device of the training steps: cpu, cuda, cuda:N")
     p.add_argument("--scenes", type=int, default=60, help="training scenes to generate")
     p.add_argument("--eval-scenes", type=int, default=6, help="held-out scenes (threshold choice, card metrics)")
-    p.add_argument("--data", type=Path, default=None, help="scene folder (train/, eval/); default OUT/scenes")
+    p.add_argument("--data", type=Path, default=None, help="scene folder (train/, eval/) (default: OUT/scenes)")
     p.add_argument("--steps", type=int, default=6000, help="optimiser steps")
     p.add_argument("--batch", type=int, default=8, help="crops per step")
     p.add_argument("--crop", type=int, default=192, help="crop side at the working resolution")
     p.add_argument("--lr", type=float, default=3e-3, help="peak learning rate")
     p.add_argument(
-        "--init", type=Path, default=None, help="weights directory to start from (fine-tuning); default: random"
+        "--init", type=Path, default=None, help="weights directory to start from, fine-tuning (default: random weights)"
     )
     p.add_argument(
         "--widths",
         default=None,
-        help="channels of the network's stem and stages, comma-separated (default 16,24,48,96,128; "
+        help="channels of the network's stem and stages, comma-separated (default: 16,24,48,96,128; "
         "with --init: the starting weights')",
     )
     p.add_argument(
         "--work-width",
         type=int,
         default=None,
-        help="width the network sees, frames downscaled to it (default 320; with --init: the starting weights')",
+        help="width the network sees, frames downscaled to it (default: 320; with --init: the starting weights')",
     )
     p.add_argument("--per-split", type=int, default=12, help="frames kept per split and scene")
     p.add_argument("--width", type=int, default=640, help="render width of the generated scenes")

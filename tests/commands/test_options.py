@@ -1,4 +1,5 @@
-"""The shared options: ``--plugin`` on every command that names a method."""
+"""The shared options: ``--plugin`` on every command that names a method, and every option's default in
+``--help``."""
 
 from __future__ import annotations
 
@@ -96,3 +97,14 @@ def test_the_console_script_finds_a_module_of_the_working_folder(free_plugin: Pa
     assert "free-plugin" in done.stdout
     bad = subprocess.run([exe, "methods", "--plugin", "raises"], capture_output=True, text=True, cwd=free_plugin)
     assert bad.returncode == 2 and "Traceback" not in bad.stderr and bad.stderr.count("\n") == 1
+
+
+@pytest.mark.parametrize("name", sorted(commands()))
+def test_help_gives_every_default(name: str) -> None:
+    """Each option with a default (not off, empty or None) ends its help with it, or names it itself."""
+    parser = commands()[name]
+    for action in parser._actions:
+        d = action.default
+        if action.option_strings and not (d is None or d is False or d == argparse.SUPPRESS or d in ("", [])):
+            shown = " ".join(parser._get_formatter()._format_action(action).split())
+            assert "(default: " in shown, f"{name} {action.option_strings[0]}: no default in its help: {shown}"

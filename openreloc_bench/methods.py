@@ -23,6 +23,9 @@ ENTRY_POINT_GROUP = "openreloc_bench.methods"
 TRACKS = ("oracle-mask", "predicted")
 """Oracle-mask: queries and mapping frames carry the dataset's instance masks (a perfect detector).
 Predicted: neither does; a method segments for itself."""
+DEFAULT_TRACK = "predicted"
+"""The track of ``eval``, ``localize``, ``score``, ``diagnose`` and the environments unless one is named:
+the headline track, the one a deployed method faces (no perfect detector); oracle masks are asked for."""
 MASK_FREE = "mask-free"
 """What stands for the track where it makes no difference: the maps and results of methods that read no
 masks (``uses_masks = False``) serve both tracks, and are recorded under this track."""

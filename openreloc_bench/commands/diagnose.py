@@ -18,7 +18,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from openreloc_bench.commands.options import add_method_config_arguments, method_overrides
+from openreloc_bench.commands.options import add_method_config_arguments, add_track_argument, method_overrides
 from openreloc_bench.errors import ConfigError
 
 NAME = "diagnose"
@@ -31,12 +31,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     where.add_argument("--scenes", help="comma-separated scene directories")
     where.add_argument("--suite", type=Path, help="suite YAML whose scenes lie under --data")
     p.add_argument("--data", type=Path, help="dataset directory of --suite")
-    p.add_argument(
-        "--track",
-        default="predicted",
-        choices=("predicted", "oracle-mask"),
-        help="predicted: the method's segmenter on map and queries; oracle-mask: the dataset's masks",
-    )
+    add_track_argument(p, "predicted: the method's segmenter on map and queries; oracle-mask: the dataset's masks")
     p.add_argument("--splits", default="query", help="comma-separated query splits")
     p.add_argument("--frames", type=int, default=12, help="frames per split whose segmentation is scored")
     p.add_argument("--no-localize", action="store_true", help="segmentation and map only")

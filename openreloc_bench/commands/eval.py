@@ -21,7 +21,7 @@ import math
 from pathlib import Path
 
 from openreloc_bench import config
-from openreloc_bench.commands.options import add_plugin_argument
+from openreloc_bench.commands.options import TRACK_HELP, add_plugin_argument, add_track_argument
 from openreloc_bench.data import paths
 from openreloc_bench.data.scene import QUERY_SPLITS
 from openreloc_bench.errors import ConfigError
@@ -46,13 +46,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--data", type=Path, required=True, help="dataset directory (one sub-directory per scene)")
     p.add_argument("--out", type=Path, required=True, help="results directory")
     p.add_argument("--splits", default="query", help=f"comma-separated query splits (of {', '.join(QUERY_SPLITS)})")
-    p.add_argument(
-        "--track",
-        default="oracle-mask",
-        choices=runner.TRACKS,
-        help="oracle-mask: the dataset's instance masks with every frame (a perfect detector); predicted: no "
-        "instance image anywhere. Methods that read no masks are recorded as mask-free",
-    )
+    add_track_argument(p, TRACK_HELP)
     p.add_argument("--executor", default="local", choices=EXECUTORS, help="where jobs run")
     p.add_argument("--workers", type=int, default=1, help="parallel jobs (local: 1 = inline, N = process pool)")
     p.add_argument("--ray-address", help="existing Ray cluster (default: $RAY_ADDRESS, else a local instance)")

@@ -4,7 +4,8 @@ The result file is the benchmark format (``name qw qx qy qz tx ty tz`` of T_cw).
 cannot place (a failure, or an exception inside the method) is left out of the file and counted in
 the summary; it never stops the run. ``--diagnostics`` writes one JSON line per query (the method's
 diagnostics: matches, timings, explanation...). When the split has ground-truth poses the summary
-also prints recall@50/25 cm; the method never sees them.
+also prints recall@50/25 cm; the method never sees them. The file's header names the track: --track,
+or mask-free for a method that declares it reads no masks (it is given none).
 
   openreloc-bench localize --method openreloc --map maps/smoke --scene data/smoke-room \\
       --split query --out poses.txt
@@ -25,13 +26,13 @@ import numpy as np
 from tqdm import tqdm
 
 from openreloc_bench import geometry
-from openreloc_bench.commands.options import add_method_arguments, method_overrides
+from openreloc_bench.commands.options import TRACK_HELP, add_method_arguments, add_track_argument, method_overrides
 from openreloc_bench.data import io, mapfile, paths
 from openreloc_bench.data.results import write_results
 from openreloc_bench.data.scene import QUERY_SPLITS, Scene
 from openreloc_bench.data.types import SceneSequence
 from openreloc_bench.errors import ConfigError
-from openreloc_bench.methods import TRACKS, Failure, PoseEstimate, QueryFrame, Relocalizer, create_method
+from openreloc_bench.methods import Failure, PoseEstimate, QueryFrame, Relocalizer, create_method, recorded_track
 
 NAME = "localize"
 HELP = "localize a query split against a map and write poses"
@@ -45,12 +46,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scene", type=Path, required=True, help="scene directory")
     p.add_argument("--split", default="query", choices=QUERY_SPLITS, help="query split")
     p.add_argument("--out", type=Path, required=True, help="result file to write")
-    p.add_argument(
-        "--track",
-        default="oracle-mask",
-        choices=TRACKS,
-        help="oracle-mask: queries carry the dataset instance masks; predicted: RGB only",
-    )
+    add_track_argument(p, TRACK_HELP)
     p.add_argument("--diagnostics", type=Path, help="also write per-query diagnostics as JSON lines")
 
 
@@ -125,15 +121,22 @@ def _json_safe(v: Any) -> Any:
     return v
 
 
-def check_map_scene(map_dir: Path, scene: Scene) -> None:
+def check_map_scene(map_dir: Path, scene: Scene, track: str | None = None) -> None:
     """ConfigError when ``map`` recorded building the map from another scene than ``scene`` (every pose
-    would be in the other scene's frame: silently wrong)."""
+    would be in the other scene's frame: silently wrong), or on another track than ``track`` (the map
+    would hold the dataset's masks, or lack them; maps from before tracks were recorded are not checked)."""
     source = mapfile.recorded_source(map_dir)
     if source is not None and source.get("spec_hash") != scene.spec_hash:
         raise ConfigError(
             f"{map_dir} is a map of scene '{source.get('scene')}' (spec {source.get('spec_hash')}), not of "
             f"{scene.root} (spec {scene.spec_hash}): localize against the scene it was built from, or build "
             "a map of this one with 'openreloc-bench map'"
+        )
+    built = source.get("track") if source is not None else None
+    if track is not None and built is not None and built != track:
+        raise ConfigError(
+            f"{map_dir} is a map of the {built} track, not of the {track} track: localize with --track {built}, "
+            f"or build a map with 'openreloc-bench map --track {track}'"
         )
 
 
@@ -146,16 +149,18 @@ def run(args: argparse.Namespace) -> int:
     method = create_method(args.method, **method_overrides(args))
     scene = Scene(args.scene)
     seq = scene.sequence(args.split)
-    check_map_scene(args.map, scene)
+    track = recorded_track(method, args.track)
+    check_map_scene(args.map, scene, track)
     method.load_map(args.map)
-    records = localize_split(method, seq, args.track)
+    seq.load_instances = track == "oracle-mask"
+    records = localize_split(method, seq, track)
     poses = {r.name: r.T_wc for r in records if r.T_wc is not None}
     write_results(
         args.out,
         poses,
         [
             f"method {args.method}",
-            f"track {args.track}",
+            f"track {track}",
             f"split {args.split}",
             f"localized {len(poses)}/{len(records)}",
         ],

@@ -6,6 +6,9 @@ keys reach nested sections, values are parsed as YAML), e.g.::
 
   openreloc-bench map --method openreloc --scene data/smoke-room --out maps/smoke \\
       --set mapping.landmark_voxel=0.03 --set encoder=clip
+
+The mapping frames carry the dataset's instance masks on the oracle-mask track only (never for a method
+that declares it reads no masks); the map records its track, and ``localize`` refuses another.
 """
 
 from __future__ import annotations
@@ -15,11 +18,11 @@ import shutil
 import time
 from pathlib import Path
 
-from openreloc_bench.commands.options import add_method_arguments, method_overrides
+from openreloc_bench.commands.options import TRACK_HELP, add_method_arguments, add_track_argument, method_overrides
 from openreloc_bench.data import mapfile, paths
 from openreloc_bench.data.scene import Scene
 from openreloc_bench.harness.cache import dir_bytes
-from openreloc_bench.methods import create_method
+from openreloc_bench.methods import create_method, recorded_track
 
 NAME = "map"
 HELP = "build a method's map from a scene's mapping split"
@@ -30,6 +33,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_method_arguments(p)
     p.add_argument("--scene", type=Path, required=True, help="scene directory (with a mapping split)")
     p.add_argument("--out", type=Path, required=True, help="map directory to write")
+    add_track_argument(p, TRACK_HELP)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -37,6 +41,8 @@ def run(args: argparse.Namespace) -> int:
     method = create_method(args.method, **method_overrides(args))
     scene = Scene(args.scene)
     seq = scene.sequence("mapping")
+    track = recorded_track(method, args.track)
+    seq.load_instances = track == "oracle-mask"
     # the directory holds the map alone (its size is the map's): a previous map there is replaced,
     # anything else is refused; no other map build writes into it meanwhile
     with paths.directory_lock(args.out, "openreloc-bench map", in_directory=False):
@@ -52,10 +58,11 @@ def run(args: argparse.Namespace) -> int:
                     p.unlink()
             raise
         # what the map is of: `localize` refuses to pair it with another scene
-        mapfile.record_source(args.out, {"scene": scene.name, "spec_hash": scene.spec_hash})
+        mapfile.record_source(args.out, {"scene": scene.name, "spec_hash": scene.spec_hash, "track": track})
         elapsed = time.perf_counter() - t0
     size = dir_bytes(args.out)
     print(
-        f"{args.method}: map of {len(seq)} mapping frames written to {args.out} ({size / 1e6:.3f} MB, {elapsed:.1f} s)"
+        f"{args.method}: map of {len(seq)} mapping frames ({track} track) written to {args.out} "
+        f"({size / 1e6:.3f} MB, {elapsed:.1f} s)"
     )
     return 0

@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from openreloc_bench import config, plugins
+from openreloc_bench.methods import DEFAULT_TRACK, TRACKS
 
 
 def add_method_arguments(p: argparse.ArgumentParser) -> None:
@@ -33,6 +34,18 @@ def load_plugin_arguments(args: argparse.Namespace) -> None:
     form worker processes import it by; a bad plugin is a one-line ConfigError."""
     if getattr(args, "plugin", None):
         args.plugin = plugins.load_plugins(args.plugin)
+
+
+def add_track_argument(p: argparse.ArgumentParser, text: str, choices: tuple[str, ...] = TRACKS) -> None:
+    """``--track``, defaulting to the one default track (``methods.DEFAULT_TRACK``)."""
+    p.add_argument("--track", default=DEFAULT_TRACK, choices=choices, help=text)
+
+
+TRACK_HELP = (
+    "predicted: no instance image anywhere, a method segments for itself; oracle-mask: the dataset's instance "
+    "masks with every frame (a perfect detector). Methods that read no masks are recorded as mask-free"
+)
+"""What ``--track`` means, for the commands that run methods."""
 
 
 def add_method_config_arguments(p: argparse.ArgumentParser) -> None:

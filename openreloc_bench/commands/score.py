@@ -17,12 +17,13 @@ from pathlib import Path
 
 import pandas as pd
 
+from openreloc_bench.commands.options import add_track_argument
 from openreloc_bench.data import paths
 from openreloc_bench.data.results import NAME_STYLES
 from openreloc_bench.errors import ConfigError
 from openreloc_bench.harness import score, tables
 from openreloc_bench.harness.suites import suite_scene_names
-from openreloc_bench.methods import TRACKS
+from openreloc_bench.methods import MASK_FREE, TRACKS
 
 NAME = "score"
 HELP = "score externally produced pose files against a dataset"
@@ -43,7 +44,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         choices=NAME_STYLES,
         help="how the files name queries: benchmark (query/000012) or hloc (query/color/000012.png)",
     )
-    p.add_argument("--track", default="predicted", choices=TRACKS, help="track the submission was produced in")
+    add_track_argument(
+        p,
+        "track the submission was produced in; mask-free: by a method that reads no masks (its rows stand "
+        "in both tracks' tables)",
+        (*TRACKS, MASK_FREE),
+    )
     p.add_argument(
         "--out",
         type=Path,

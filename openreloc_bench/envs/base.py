@@ -44,6 +44,7 @@ from openreloc_bench.envs.relocalizer import Estimate, InLoopRelocalizer
 from openreloc_bench.envs.scenes import cache_root, resolve_scene
 from openreloc_bench.envs.world import AgentPose, World, scene_spec
 from openreloc_bench.errors import ConfigError, OpenRelocError
+from openreloc_bench.methods import DEFAULT_TRACK
 
 MOVES = ("forward", "turn_left", "turn_right", "look_up", "look_down")
 FORWARD, TURN_LEFT, TURN_RIGHT, LOOK_UP, LOOK_DOWN, DONE = range(6)
@@ -75,7 +76,7 @@ class EnvConfig:
     """Registered relocalization method in the loop (``openreloc-bench methods``); None: no relocalizer."""
     method_options: dict[str, Any] = field(default_factory=dict)
     """The method's config overrides (as ``--set`` gives them to ``openreloc-bench map``)."""
-    track: Literal["predicted", "oracle-mask"] = "predicted"
+    track: Literal["predicted", "oracle-mask"] = DEFAULT_TRACK
     """What the relocalizer is given: the image only, or the image and perfect instance masks."""
     relocalize_every: int = 1
     """Ask the relocalizer about the view after every this many steps (and after reset); 0: only when

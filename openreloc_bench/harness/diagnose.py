@@ -30,7 +30,7 @@ from openreloc_bench.data.scene import Scene
 from openreloc_bench.data.types import SceneSequence
 from openreloc_bench.harness.cache import build_map_cached, config_hash
 from openreloc_bench.harness.metrics import summarize
-from openreloc_bench.methods import Failure, PoseEstimate, QueryFrame, create_method
+from openreloc_bench.methods import DEFAULT_TRACK, Failure, PoseEstimate, QueryFrame, create_method
 from openreloc_bench.openreloc.map import ObjectMap
 from openreloc_bench.openreloc.mapping import box_point_labels, boxed_objects
 from openreloc_bench.vision import create_segmenter
@@ -47,7 +47,7 @@ BOUNDARY_TOLERANCE_PX = 2
 class DiagnoseOptions:
     """What ``diagnose`` measures."""
 
-    track: str = "predicted"
+    track: str = DEFAULT_TRACK
     """'predicted' (the method's segmenter on map and queries) or 'oracle-mask' (the dataset's masks)."""
     splits: tuple[str, ...] = ("query",)
     """Query splits to segment and localize."""

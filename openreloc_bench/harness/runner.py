@@ -51,6 +51,7 @@ from openreloc_bench.harness.score import (
 )
 from openreloc_bench.harness.tables import backfill_difficulty, read_query_csv
 from openreloc_bench.methods import (
+    DEFAULT_TRACK,
     MASK_FREE,
     TRACKS,
     Failure,
@@ -395,7 +396,7 @@ class EvalConfig:
     """Method variants to evaluate."""
     splits: list[str] = field(default_factory=lambda: ["query"])
     """Query splits to localize."""
-    track: str = "oracle-mask"
+    track: str = DEFAULT_TRACK
     """``oracle-mask`` (queries carry the dataset's instance masks) or ``predicted`` (RGB only)."""
     executor: str = "local"
     """``local`` (process pool; inline with one worker) or ``ray``."""

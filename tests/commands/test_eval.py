@@ -61,7 +61,7 @@ def test_eval_prints_a_metrics_table(data: Path, tmp_path: Path, capsys: pytest.
     )
     out = " ".join(capsys.readouterr().out.split())
     assert rc == 0
-    assert "R@50cm%" in out and "test-oracle oracle-mask query" in out
+    assert "R@50cm%" in out and "test-oracle predicted query" in out  # the default track
     assert "nearest-frame mask-free query" in out  # declares it reads no masks
     q = load_run_queries(tmp_path / "r")
     assert (q[q.method == "test-oracle"]["t_err_m"].round(6) == 0.3).all()
@@ -71,7 +71,7 @@ def test_eval_prints_the_spread_over_seeds(data: Path, tmp_path: Path, capsys: p
     rc = main(eval_args(data, tmp_path / "r", "--methods", "test-oracle", "--timeout", "0", "--seeds", "0,3"))
     out = capsys.readouterr().out
     assert rc == 0 and "test-oracle@seed3" in out
-    assert "test-oracle oracle-mask query, 2 seeds: R@50cm% 100.0 ± 0.0 [100.0, 100.0]  R@25cm% 50.0 ± 70.7" in out
+    assert "test-oracle predicted query, 2 seeds: R@50cm% 100.0 ± 0.0 [100.0, 100.0]  R@25cm% 50.0 ± 70.7" in out
     assert (tmp_path / "r" / "tables" / "seeds.csv").is_file()
 
 

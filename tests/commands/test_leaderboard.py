@@ -41,6 +41,8 @@ def results(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
                 "test-oracle,nearest-frame",
                 "--plugin",
                 "harness_test_methods",
+                "--track",
+                "oracle-mask",
             ]
         )
         == 0

@@ -145,3 +145,28 @@ def test_a_map_of_another_scene_is_refused(tmp_path: Path, capsys: pytest.Captur
     err = capsys.readouterr().err.strip()
     assert "map of scene 'a'" in err and "tiny-1" in err and "\n" not in err and not out.exists()
     assert main([*args, str(mapped)]) == 0
+
+
+class Masked(NearestFrame):
+    """nearest-frame declaring it reads masks (the default), so that the track decides what it gets."""
+
+    name = "masked"
+    uses_masks = True
+
+
+@pytest.mark.parametrize(("method", "built"), [("nearest-frame", "mask-free"), ("masked", "predicted")])
+def test_map_records_its_track_and_localize_refuses_another(
+    tmp_path: Path, capsys: pytest.CaptureFixture, method: str, built: str
+) -> None:
+    register("masked", Masked)
+    scene = write_tiny_scene(tmp_path / "tiny")
+    assert main(["map", "--method", method, "--scene", str(scene), "--out", str(tmp_path / "m")]) == 0
+    assert f"({built} track)" in capsys.readouterr().out  # the default track, unless the method reads no masks
+    out = tmp_path / "poses.txt"
+    args = ["localize", "--method", method, "--map", str(tmp_path / "m"), "--scene", str(scene), "--out", str(out)]
+    assert main([*args, "--track", "oracle-mask"]) == (0 if built == "mask-free" else 2)
+    err = capsys.readouterr().err.strip()
+    if built != "mask-free":
+        assert "is a map of the predicted track, not of the oracle-mask track" in err and "\n" not in err
+    assert main(args) == 0
+    assert f"# track {built}" in out.read_text()

@@ -1,5 +1,5 @@
-"""The shared options: ``--plugin`` on every command that names a method, and every option's default in
-``--help``."""
+"""The shared options: ``--plugin`` on every command that names a method, ``--track``'s one default, and
+every option's default in ``--help``."""
 
 from __future__ import annotations
 
@@ -11,6 +11,10 @@ from pathlib import Path
 import pytest
 
 from openreloc_bench.cli import build_parser, main
+from openreloc_bench.envs.base import EnvConfig
+from openreloc_bench.harness.diagnose import DiagnoseOptions
+from openreloc_bench.harness.runner import EvalConfig
+from openreloc_bench.methods import DEFAULT_TRACK
 from tests.conftest import FREE_PLUGIN, write_tiny_scene
 
 PLUGIN_COMMANDS = {
@@ -108,3 +112,14 @@ def test_help_gives_every_default(name: str) -> None:
         if action.option_strings and not (d is None or d is False or d == argparse.SUPPRESS or d in ("", [])):
             shown = " ".join(parser._get_formatter()._format_action(action).split())
             assert "(default: " in shown, f"{name} {action.option_strings[0]}: no default in its help: {shown}"
+
+
+@pytest.mark.parametrize("name", ["eval", "localize", "map", "score", "diagnose"])
+def test_track_defaults_to_the_one_default_track_and_help_says_so(name: str) -> None:
+    parser = commands()[name]
+    assert parser.get_default("track") == DEFAULT_TRACK == "predicted"
+    assert f"(default: {DEFAULT_TRACK})" in " ".join(parser.format_help().split())
+
+
+def test_the_library_defaults_to_the_same_track() -> None:
+    assert EnvConfig().track == EvalConfig(Path(), Path(), [], []).track == DiagnoseOptions().track == DEFAULT_TRACK

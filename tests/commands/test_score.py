@@ -131,3 +131,14 @@ def test_other_formats_still_fail_loudly(data: Path, tmp_path: Path, capsys, fil
     assert main(["score", str(sub), "--data", str(data), "--out", str(tmp_path / "o"), *argv]) == 2
     err = capsys.readouterr().err.strip()
     assert message in err and len(err.splitlines()) == 1
+
+
+@pytest.mark.parametrize(("track", "uses_masks"), [("oracle-mask", True), ("mask-free", False)])
+def test_the_submission_declares_its_track(data: Path, tmp_path: Path, track: str, uses_masks: bool) -> None:
+    """mask-free: a method that reads no masks, whose rows stand in both tracks' tables."""
+    write_results(tmp_path / "sub" / "s1.txt", estimates(data, "query", 0.1))
+    assert (
+        main(["score", str(tmp_path / "sub"), "--data", str(data), "--track", track, "--out", str(tmp_path / "t")]) == 0
+    )
+    q = pd.read_csv(tmp_path / "t" / "tables" / "queries.csv")
+    assert set(q["track"]) == {track} and set(q["uses_masks"]) == {uses_masks}

@@ -371,7 +371,7 @@ def test_tum_export_pairs_each_estimate_with_its_own_ground_truth_after_a_failur
     cfg = write_input(world, "cfg.yaml", b"fail_on: query/000000\nnoise_m: 0.05\n")
     argv = eval_argv(world, "--method-config", f"test-oracle={cfg}", *PLUGIN, methods="test-oracle")
     assert run(argv, capsys)[0] == 0
-    out = world.tmp / "res" / "runs" / "test-oracle" / "oracle-mask" / "sA"
+    out = world.tmp / "res" / "runs" / "test-oracle" / "predicted" / "sA"  # the default track
     est_t, est = read_tum_trajectory(out / "query.tum")
     gt_t, gt = read_tum_trajectory(out / "query.gt.tum")
     assert est_t.tolist() == [1.0, 2.0] and gt_t.tolist() == [0.0, 1.0, 2.0]

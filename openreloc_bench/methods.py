@@ -24,8 +24,8 @@ TRACKS = ("oracle-mask", "predicted")
 """Oracle-mask: queries and mapping frames carry the dataset's instance masks (a perfect detector).
 Predicted: neither does; a method segments for itself."""
 DEFAULT_TRACK = "predicted"
-"""The track of ``eval``, ``localize``, ``score``, ``diagnose`` and the environments unless one is named:
-the headline track, the one a deployed method faces (no perfect detector); oracle masks are asked for."""
+"""The track of ``eval``, ``map``, ``localize``, ``score``, ``diagnose`` and the environments unless one is
+named: the headline track, the one a deployed method faces (no perfect detector); oracle masks are asked for."""
 MASK_FREE = "mask-free"
 """What stands for the track where it makes no difference: the maps and results of methods that read no
 masks (``uses_masks = False``) serve both tracks, and are recorded under this track."""
@@ -33,7 +33,7 @@ masks (``uses_masks = False``) serve both tracks, and are recorded under this tr
 
 @dataclass
 class QueryFrame:
-    """What a method sees of a query: never its ground-truth pose."""
+    """What a method's ``localize`` receives of a query: never its ground-truth pose, nor its depth."""
 
     name: str
     """``<split>/<frame id>``."""
@@ -69,7 +69,14 @@ class Failure:
 
 @runtime_checkable
 class Relocalizer(Protocol):
-    """The contract every method satisfies. Everything needed at query time lives in ``map_dir``."""
+    """The contract every method satisfies. Everything needed at query time lives in ``map_dir``.
+
+    The constructor receives the method's settings as keyword arguments (``eval --method-config``,
+    ``map --set``; none for the defaults). Optional: ``config``, a dataclass of those settings (recorded
+    with every result, printed by ``openreloc-bench config``); ``uses_masks = False``, declaring that the
+    method reads no instance masks (it is then given none, and its results are recorded as
+    ``mask-free``, standing for both tracks); ``map_config()`` (see :func:`map_config`).
+    """
 
     name: str
 

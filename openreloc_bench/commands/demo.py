@@ -8,7 +8,8 @@ It is exactly these two commands (printed as it runs, so you can take them from 
       --data OUT/data --out OUT/results --robustness --resume
   openreloc-bench leaderboard OUT/results --out OUT/leaderboard
 
-A second run reuses the scene, the maps and the finished queries (--resume).
+A second run reuses the scene, the maps and the finished queries (--resume). Put your own method
+beside the others with ``--methods openreloc,nearest-frame,hist-nn --plugin ./hist_nn.py``.
 """
 
 from __future__ import annotations

@@ -10,8 +10,10 @@ once per seed (the maps are shared) and reports each metric's spread over the se
 on a local process pool (--workers N) or on Ray (--executor ray; RAY_ADDRESS or --ray-address selects
 a cluster).
 
-Example:
+Example (hist_nn.py registering a method, as in the README's "Adding a method"):
   openreloc-bench eval --suite scenes/smoke.yaml --methods nearest-frame --data data --out results
+  openreloc-bench eval --suite scenes/smoke.yaml --methods hist-nn,nearest-frame --plugin ./hist_nn.py \
+      --data data --out results
 """
 
 from __future__ import annotations

@@ -47,7 +47,10 @@ class FrameRecord:
 
 @dataclass
 class SceneSequence:
-    """An ordered split of posed frames (e.g. a scene's ``mapping`` or ``query`` split)."""
+    """An ordered split of posed frames (e.g. a scene's ``mapping`` or ``query`` split): what a method's
+    ``build_map`` receives. Iterating or indexing it gives :class:`Frame` objects, decoded on access;
+    ``poses``, ``names`` and ``K`` decode no image. With ``load_instances`` off (the predicted track, and
+    methods that read no masks) every ``Frame.instance`` is None."""
 
     split: str
     K: np.ndarray

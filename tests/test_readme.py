@@ -1,0 +1,54 @@
+"""README's "Adding a method" example, run as written: saved as ``hist_nn.py`` and evaluated through the CLI."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from openreloc_bench.cli import main
+from tests.conftest import write_tiny_scene
+
+README = Path(__file__).resolve().parents[1] / "README.md"
+
+
+def example_method() -> str:
+    """The first Python block of the README's "Adding a method" section."""
+    section = README.read_text().split("\n## Adding a method\n", 1)[1].split("\n## ", 1)[0]
+    return re.search(r"```python\n(.*?)```", section, re.S).group(1)
+
+
+@pytest.fixture
+def hist_nn(plugin_sandbox: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    """The working folder, holding the README's ``hist_nn.py`` and a tiny scene under ``data/``."""
+    (plugin_sandbox / "hist_nn.py").write_text(example_method())
+    write_tiny_scene(plugin_sandbox / "data" / "tiny")
+    monkeypatch.chdir(plugin_sandbox)
+    return plugin_sandbox
+
+
+def test_the_example_is_a_whole_method_file() -> None:
+    code = example_method()
+    assert code.startswith("# hist_nn.py") and 'register("hist-nn", HistNN)' in code
+    assert "uses_masks = False" in code and "PoseEstimate(" in code and "Failure(" in code
+
+
+def test_the_example_runs_beside_a_baseline_in_worker_processes(hist_nn: Path, capsys: pytest.CaptureFixture) -> None:
+    args = ["eval", "--scenes", "tiny", "--data", "data", "--out", "results", "--plugin", "./hist_nn.py"]
+    assert main([*args, "--methods", "hist-nn,nearest-frame", "--workers", "2"]) == 0
+    out = " ".join(capsys.readouterr().out.split())
+    assert "hist-nn mask-free query" in out and "6 of 6 localized; 0 errors" in out
+    q = pd.read_csv(hist_nn / "results" / "tables" / "queries.csv")
+    assert set(q.loc[q["method"] == "hist-nn", "track"]) == {"mask-free"}
+
+
+def test_the_example_reads_its_settings_and_fails_with_a_reason(hist_nn: Path, capsys: pytest.CaptureFixture) -> None:
+    assert main(["config", "hist-nn", "--plugin", "./hist_nn.py"]) == 0
+    assert "bins: 8\nmax_distance: 0.5\n" in capsys.readouterr().out
+    (hist_nn / "strict.yaml").write_text("max_distance: 0.0\n")
+    args = ["eval", "--scenes", "tiny", "--data", "data", "--out", "results", "--plugin", "hist_nn", "--timeout", "0"]
+    assert main([*args, "--methods", "hist-nn", "--method-config", "hist-nn=strict.yaml"]) == 0
+    q = pd.read_csv(hist_nn / "results" / "tables" / "queries.csv")
+    assert not q["success"].any() and q["reason"].str.startswith("closest histogram at ").all()

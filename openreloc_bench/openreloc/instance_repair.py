@@ -33,7 +33,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import open3d as o3d
 import scipy.sparse as sp
 from scipy.optimize import minimize
 from scipy.spatial import cKDTree
@@ -42,6 +41,7 @@ from openreloc_bench.config import check_ranges
 from openreloc_bench.data import mapfile
 from openreloc_bench.errors import DataError
 from openreloc_bench.openreloc.incidence import ViewEvidence, incidence, view_evidence
+from openreloc_bench.openreloc.plane_split import point_normals
 
 MERGER_FORMAT = ("openreloc-merger", 1)
 MERGER_FILE = "merger.json"
@@ -129,9 +129,7 @@ def point_attributes(points: np.ndarray, obs: list, camera_centres: np.ndarray) 
     boundary = np.bincount(idx, np.concatenate([o.boundary for o in obs]).astype(np.float64), n) / count
     colour = np.concatenate([o.rgb for o in obs]).astype(np.float64)
     rgb = np.stack([np.bincount(idx, colour[:, c], n) for c in range(3)], 1) / count[:, None]
-    pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points.astype(np.float64)))
-    pcd.estimate_normals(o3d.geometry.KDTreeSearchParamKNN(16))
-    normals = np.asarray(pcd.normals)
+    normals = point_normals(points)
     cam = np.zeros((n, 3))
     for o in obs:
         cam[o.point_idx] = camera_centres[o.index]

@@ -113,7 +113,7 @@ def split_off_supported(
     by ``edges``, smaller than ``max_size``) made regions of their own, numbered after the largest id."""
     if not cfg.enabled or len(points) == 0:
         return regions
-    horizontal = np.abs(_normals(points)[:, 2]) >= np.cos(np.radians(cfg.horizontal_degrees))
+    horizontal = np.abs(point_normals(points)[:, 2]) >= np.cos(np.radians(cfg.horizontal_degrees))
     band = cfg.band_spacings * spacing
     min_points = cfg.min_area / spacing**2
     above = np.zeros(len(points), bool)
@@ -186,8 +186,8 @@ def _extent(pts: np.ndarray) -> float:
     return float(np.ptp(centred @ axis))
 
 
-def _normals(points: np.ndarray) -> np.ndarray:
-    """(N, 3) unit normals from 16 neighbours (their sign is arbitrary)."""
+def point_normals(points: np.ndarray) -> np.ndarray:
+    """(N, 3) unit normals of a point cloud from 16 neighbours each (their sign is arbitrary)."""
     pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points.astype(np.float64)))
     pcd.estimate_normals(o3d.geometry.KDTreeSearchParamKNN(16))
     return np.asarray(pcd.normals)

@@ -126,16 +126,14 @@ def split_off_supported(
         if top is not None:
             above[idx[points[idx, 2] > top + band]] = True
     out = _split_parts(regions, edges, above)
-    fresh = out != regions
-    if fresh.any():  # parts as large as the region's own structure stay with it
-        part_ids, inverse = np.unique(out[fresh], return_inverse=True)
-        pts = points[fresh]
+    if above.any():  # parts as large as the region's own structure stay with it
+        part_ids, inverse = np.unique(out[above], return_inverse=True)
         lo = np.full((len(part_ids), 3), np.inf)
         hi = np.full((len(part_ids), 3), -np.inf)
-        np.minimum.at(lo, inverse, pts)
-        np.maximum.at(hi, inverse, pts)
-        too_large = np.linalg.norm(hi - lo, axis=1) >= cfg.max_size
-        out[np.flatnonzero(fresh)[too_large[inverse]]] = regions[fresh][too_large[inverse]]
+        np.minimum.at(lo, inverse, points[above])
+        np.maximum.at(hi, inverse, points[above])
+        back = np.flatnonzero(above)[np.linalg.norm(hi - lo, axis=1)[inverse] >= cfg.max_size]
+        out[back] = regions[back]
     return out
 
 

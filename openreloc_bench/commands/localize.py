@@ -121,25 +121,6 @@ def _json_safe(v: Any) -> Any:
     return v
 
 
-def check_map_scene(map_dir: Path, scene: Scene, track: str | None = None) -> None:
-    """ConfigError when ``map`` recorded building the map from another scene than ``scene`` (every pose
-    would be in the other scene's frame: silently wrong), or on another track than ``track`` (the map
-    would hold the dataset's masks, or lack them; maps from before tracks were recorded are not checked)."""
-    source = mapfile.recorded_source(map_dir)
-    if source is not None and source.get("spec_hash") != scene.spec_hash:
-        raise ConfigError(
-            f"{map_dir} is a map of scene '{source.get('scene')}' (spec {source.get('spec_hash')}), not of "
-            f"{scene.root} (spec {scene.spec_hash}): localize against the scene it was built from, or build "
-            "a map of this one with 'openreloc-bench map'"
-        )
-    built = source.get("track") if source is not None else None
-    if track is not None and built is not None and built != track:
-        raise ConfigError(
-            f"{map_dir} is a map of the {built} track, not of the {track} track: localize with --track {built}, "
-            f"or build a map with 'openreloc-bench map --track {track}'"
-        )
-
-
 def run(args: argparse.Namespace) -> int:
     for flag, out in (("--out", args.out), ("--diagnostics", args.diagnostics)):
         if out is not None:
@@ -150,7 +131,7 @@ def run(args: argparse.Namespace) -> int:
     scene = Scene(args.scene)
     seq = scene.sequence(args.split)
     track = recorded_track(method, args.track)
-    check_map_scene(args.map, scene, track)
+    mapfile.check_map_scene(args.map, scene, track)
     method.load_map(args.map)
     seq.load_instances = track == "oracle-mask"
     records = localize_split(method, seq, track)

@@ -13,8 +13,9 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+from matplotlib.artist import Artist  # noqa: E402
 from matplotlib.colors import hsv_to_rgb  # noqa: E402
-from matplotlib.patches import Rectangle  # noqa: E402
+from matplotlib.patches import Patch, Rectangle  # noqa: E402
 
 from openreloc_bench.data.scene import Scene  # noqa: E402
 
@@ -63,48 +64,96 @@ def contact_sheet(scene: Scene, frames_per_split: int = 4) -> plt.Figure:
     return fig
 
 
+OPENINGS = ("door", "window", "stairs", "railing")
+"""Structural categories drawn as outlines (the walls are filled; other structure is not drawn)."""
+
+
+def floor_index(scene: Scene, z: np.ndarray) -> np.ndarray:
+    """The floor (index into ``scene.json``'s ``floors``; 0 when it lists none) each height ``z`` is on."""
+    zs = np.array([f["z"] for f in scene.info.get("floors") or [{"z": 0.0}]])
+    return np.clip(np.searchsorted(zs, np.asarray(z) + 1e-6) - 1, 0, len(zs) - 1)
+
+
+def plan_extent(scene: Scene) -> tuple[np.ndarray, np.ndarray] | None:
+    """(min xy, max xy) of the building: its rooms, else its objects' boxes; None for a scene with neither."""
+    rects = [r["rect"] for r in scene.info.get("rooms", [])]
+    if not rects:
+        rects = [[*o.aabb[0][:2], *o.aabb[1][:2]] for o in scene.objects.values()]
+    if not rects:
+        return None
+    r = np.asarray(rects, dtype=np.float64)
+    return r[:, :2].min(axis=0), r[:, 2:].max(axis=0)
+
+
+def draw_floor(ax: plt.Axes, scene: Scene, floor: int, room_names: bool = True, displaced: bool = True) -> list[Artist]:
+    """Draw one floor's plan on ``ax``: rooms (coloured by kind), walls, doors/windows/stairs, the other
+    objects' boxes and, with ``displaced``, which objects ``query_displaced`` moved and where to. Returns
+    a legend entry for each kind of thing drawn (the plan's patches carry no labels of their own)."""
+    moved = {d["id"]: d for d in scene.displacements()} if displaced else {}
+    kinds: list[str] = []
+    for room in scene.info.get("rooms", []):
+        if room["floor"] != floor:
+            continue
+        x0, y0, x1, y1 = room["rect"]
+        ax.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, color=_KIND_COLOURS.get(room["kind"], "#f4f4f4"), zorder=0))
+        if room_names:
+            ax.text((x0 + x1) / 2, y1 - 0.15, room["name"], ha="center", va="top", fontsize=7, zorder=5)
+        kinds.append(room["kind"])
+    drawn: dict[str, int] = {}
+    for o in scene.objects.values():
+        if o.floor != floor:
+            continue
+        (x0, y0, _), (x1, y1, _) = o.aabb
+        if o.category == "wall":
+            ax.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, color="#333333", zorder=2))
+            drawn["walls"] = drawn.get("walls", 0) + 1
+        elif o.category in OPENINGS:
+            ax.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, fill=False, ec="#8a5a2b", lw=1.2, zorder=3))
+            drawn[o.category] = drawn.get(o.category, 0) + 1
+        elif not o.structural:
+            ec = "red" if o.id in moved else "#555555"
+            ax.add_patch(
+                Rectangle((x0, y0), x1 - x0, y1 - y0, fill=True, fc="#bbbbbb", ec=ec, lw=0.6, alpha=0.6, zorder=1)
+            )
+            drawn["objects"] = drawn.get("objects", 0) + 1
+    n_moved = 0
+    for d in moved.values():
+        if scene.objects[d["id"]].floor == floor:
+            (x0, y0, _), (x1, y1, _) = d["aabb_after"]
+            ax.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, fill=False, ec="red", ls="--", lw=0.8, zorder=4))
+            n_moved += 1
+    handles: list[Artist] = [
+        Patch(color=_KIND_COLOURS.get(k, "#f4f4f4"), label=f"room: {k}") for k in dict.fromkeys(sorted(kinds))
+    ]
+    if "walls" in drawn:
+        handles.append(Patch(color="#333333", label="walls"))
+    openings = [c for c in OPENINGS if c in drawn]
+    if openings:
+        handles.append(
+            Patch(
+                fill=False, ec="#8a5a2b", lw=1.2, label=", ".join(c if c.endswith("s") else f"{c}s" for c in openings)
+            )
+        )
+    if "objects" in drawn:
+        handles.append(Patch(fc="#bbbbbb", ec="#555555", lw=0.6, alpha=0.6, label=f"objects ({drawn['objects']})"))
+    if n_moved:
+        handles.append(Patch(fc="#bbbbbb", ec="red", lw=0.6, alpha=0.6, label=f"moved objects, before ({n_moved})"))
+        handles.append(Patch(fill=False, ec="red", ls="--", lw=0.8, label="moved objects, after (query_displaced)"))
+    return handles
+
+
 def floor_plan(scene: Scene) -> plt.Figure:
     """One panel per floor: rooms, walls, objects, mapping path and query poses (arrows = viewing direction)."""
     floors = scene.info.get("floors") or [{"index": 0, "z": 0.0}]
-    fig, axes = plt.subplots(1, len(floors), figsize=(7 * len(floors), 6), squeeze=False)
-    zs = np.array([f["z"] for f in floors])
-
-    def floor_of(z: np.ndarray) -> np.ndarray:
-        return np.clip(np.searchsorted(zs, z + 1e-6) - 1, 0, len(zs) - 1)
-
+    fig, axes = plt.subplots(1, len(floors), figsize=(7 * len(floors) + 2, 6), squeeze=False, layout="constrained")
     seqs = {s: scene.sequence(s) for s in ("mapping", "query") if s in scene.splits()}
-    moved = {d["id"]: d for d in scene.displacements()}
     for f, ax in enumerate(axes[0]):
-        for room in scene.info.get("rooms", []):
-            if room["floor"] != f:
-                continue
-            x0, y0, x1, y1 = room["rect"]
-            ax.add_patch(
-                Rectangle((x0, y0), x1 - x0, y1 - y0, color=_KIND_COLOURS.get(room["kind"], "#f4f4f4"), zorder=0)
-            )
-            ax.text((x0 + x1) / 2, y1 - 0.15, room["name"], ha="center", va="top", fontsize=7, zorder=5)
-        for o in scene.objects.values():
-            if o.floor != f:
-                continue
-            (x0, y0, _), (x1, y1, _) = o.aabb
-            if o.category in ("wall",):
-                ax.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, color="#333333", zorder=2))
-            elif o.category in ("door", "window", "stairs", "railing"):
-                ax.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, fill=False, ec="#8a5a2b", lw=1.2, zorder=3))
-            elif not o.structural:
-                ec = "red" if o.id in moved else "#555555"
-                ax.add_patch(
-                    Rectangle((x0, y0), x1 - x0, y1 - y0, fill=True, fc="#bbbbbb", ec=ec, lw=0.6, alpha=0.6, zorder=1)
-                )
-        for d in moved.values():
-            if scene.objects[d["id"]].floor == f:
-                (x0, y0, _), (x1, y1, _) = d["aabb_after"]
-                ax.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, fill=False, ec="red", ls="--", lw=0.8, zorder=4))
+        handles = draw_floor(ax, scene, f)
         for split, style in (("mapping", dict(color="tab:blue", lw=1.0)), ("query", dict(color="tab:red", lw=0))):
             if split not in seqs:
                 continue
             T = np.array([r.T_wc for r in seqs[split].records])
-            m = floor_of(T[:, 2, 3]) == f
+            m = floor_index(scene, T[:, 2, 3]) == f
             if not m.any():
                 continue
             pos, fwd = T[m, :2, 3], T[m, :2, 2]
@@ -121,15 +170,16 @@ def floor_plan(scene: Scene) -> plt.Figure:
                 scale=2.5,
                 width=0.004,
                 zorder=7,
-                label=f"{split} ({m.sum()})",
+                label=f"{split} cameras ({m.sum()})",
             )
         ax.set_aspect("equal")
         ax.autoscale_view()
         ax.set_title(f"{scene.name}, floor {f}", fontsize=10)
         ax.set_xlabel("x (m)")
         ax.set_ylabel("y (m)")
-        ax.legend(loc="lower right", fontsize=7)
-    fig.tight_layout()
+        ax.legend(
+            handles=handles + ax.get_legend_handles_labels()[0], loc="upper left", bbox_to_anchor=(1.01, 1), fontsize=7
+        )
     return fig
 
 

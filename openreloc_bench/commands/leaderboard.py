@@ -1,7 +1,8 @@
 """Render the leaderboard from one or more results directories (of ``eval``, or ``score``'s --out):
 a markdown table, a CSV, a static HTML page with sortable columns, and plots (cumulative
-translation / rotation error curves, per-scene recall bars, top-down ground truth vs estimates, recall
-against each query's difficulty, whose numbers go to difficulty.csv).
+translation / rotation error curves, per-scene recall bars, top-down ground truth vs estimates (over
+each scene's floor plan with --data), recall against each query's difficulty, whose numbers go to
+difficulty.csv).
 
 Each row stands under the track its run recorded: mask-free for a method that declared it reads no
 masks (its rows stand in both tracks' tables). Results written before tracks were recorded that way
@@ -24,13 +25,18 @@ ORDER = 50
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("results", type=Path, nargs="+", metavar="RESULTS", help="results directories")
     p.add_argument("--out", type=Path, default=Path("leaderboard"), help="output directory")
+    p.add_argument(
+        "--data",
+        type=Path,
+        help="dataset directory the results ran on: draws each scene's floor plan under its top-down plot",
+    )
     add_plugin_argument(p)
 
 
 def run(args: argparse.Namespace) -> int:
     from openreloc_bench.harness.leaderboard import write_leaderboard  # matplotlib: only when used
 
-    files = write_leaderboard(args.results, args.out)
+    files = write_leaderboard(args.results, args.out, args.data)
     board = (args.out / "leaderboard.md").read_text().split("\n## Per scene")[0]  # one table per track
     print(board.rstrip())
     print(f"wrote {len(files)} files to {args.out}")

@@ -335,7 +335,7 @@ def render(cfg: CampaignConfig, ledger: Ledger, say: Callable[[str], None]) -> N
             continue
         tables.write_tables(results / "tables", queries, runner.load_map_records(results))
         board = cfg.out / suite
-        write_leaderboard([results], board)
+        write_leaderboard([results], board, cfg.data)
         for abl in sorted((results / "tables").glob("ablations_*.md")):
             shutil.copyfile(abl, board / abl.name)
         summaries.append(pd.read_csv(board / "leaderboard.csv").assign(suite=suite))

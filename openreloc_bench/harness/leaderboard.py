@@ -9,11 +9,13 @@ each difficulty axis, as plots and as numbers (``difficulty.csv``).
 from __future__ import annotations
 
 import html
+import logging
 import math
 from collections.abc import Sequence
 from pathlib import Path
 
 import matplotlib
+import matplotlib.artist
 import matplotlib.lines
 import matplotlib.ticker
 
@@ -23,6 +25,7 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
 from openreloc_bench.data import io, paths  # noqa: E402
+from openreloc_bench.data.scene import Scene  # noqa: E402
 from openreloc_bench.errors import DataError  # noqa: E402
 from openreloc_bench.harness.ablations import ROBUSTNESS_ROWS  # noqa: E402
 from openreloc_bench.harness.metrics import cumulative_curve, summarize  # noqa: E402
@@ -37,6 +40,8 @@ from openreloc_bench.harness.tables import (  # noqa: E402
     read_query_csv,
 )
 from openreloc_bench.methods import MASK_FREE, uses_masks  # noqa: E402
+
+log = logging.getLogger(__name__)
 
 BOARD_COLUMNS = {
     "method": "Method", "track": "Track", "split": "Split", "n_scenes": "Scenes", "n_seeds": "Seeds", "n_queries": "Queries",
@@ -314,7 +319,8 @@ threshold. Click a column header to sort. {html.escape(provenance(b))}</p>
 
 
 def _save(fig: plt.Figure, path: Path) -> None:
-    fig.tight_layout()
+    if fig.get_layout_engine() is None:  # a figure made with layout="constrained" keeps it
+        fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
 
@@ -510,29 +516,135 @@ def plot_recall_vs_difficulty(binned: pd.DataFrame, title: str, path: Path) -> l
     return axes
 
 
-def plot_topdown(q: pd.DataFrame, scene: str, path: Path) -> None:
-    """Ground-truth vs estimated camera positions (x, y), a line from each truth to its estimate."""
+TOPDOWN_MARGIN_M = 0.5
+"""How far a top-down plot reaches beyond the building; an estimate farther out is drawn at the plot's
+edge and counted as outside."""
+TOPDOWN_VIEW_MARGIN_M = 2.0
+"""The same beyond the true cameras, for a scene whose plan is unknown."""
+RECALL_RADIUS_M = 0.5
+
+
+def topdown_extent(gt_xy: np.ndarray, scene: Scene | None = None) -> tuple[np.ndarray, np.ndarray, str]:
+    """(min xy, max xy, what it is) of a top-down plot: the building's plan and the true cameras with
+    :data:`TOPDOWN_MARGIN_M` around when the scene is known ("building"), else the true cameras with
+    :data:`TOPDOWN_VIEW_MARGIN_M` ("view")."""
+    pts = np.asarray(gt_xy, dtype=np.float64).reshape(-1, 2)
+    pts = pts[np.isfinite(pts).all(axis=1)]
+    what, margin = "view", TOPDOWN_VIEW_MARGIN_M
+    if scene is not None:
+        from generators.preview import plan_extent  # the generator only where a board draws a scene
+
+        extent = plan_extent(scene)
+        if extent is not None:
+            pts, what, margin = np.vstack([pts, *extent]), "building", TOPDOWN_MARGIN_M
+    if not len(pts):
+        return np.full(2, -margin), np.full(2, margin), what
+    return pts.min(axis=0) - margin, pts.max(axis=0) + margin, what
+
+
+def clip_to_extent(xy: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``xy`` (N, 2) clipped into the box [lo, hi], and which points were outside it."""
+    xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+    drawn = np.clip(xy, lo, hi)
+    return drawn, np.any(drawn != xy, axis=1)
+
+
+def plot_topdown(q: pd.DataFrame, scene: str, path: Path, scene_data: Scene | None = None) -> list[plt.Axes]:
+    """True vs estimated camera positions (x, y) on the plain query split, one panel per (method, track),
+    a line from each truth to its estimate; over the scene's floor plan when ``scene_data`` is given.
+
+    An estimate outside the building (or, without the scene, far from every true camera) is drawn at the
+    panel's edge with its own marker and counted in the legend. Returns the panels."""
     s = q[(q["scene"] == scene) & (q["split"] == "query")]
     runs = sorted({(m, t) for m, t in zip(s["method"], s["track"])})
-    fig, axes = plt.subplots(1, len(runs), figsize=(4.2 * len(runs), 4.2), squeeze=False)
-    for ax, (method, track) in zip(axes[0], runs):
+    ncols = min(len(runs), 4)
+    nrows = math.ceil(len(runs) / ncols)
+    fig, grid = plt.subplots(
+        nrows, ncols, figsize=(4.4 * ncols, 5.4 * nrows + 0.8), squeeze=False, layout="constrained"
+    )
+    lo, hi, where = topdown_extent(s[["gt_x", "gt_y"]].to_numpy(), scene_data)
+    plan: dict[str, matplotlib.artist.Artist] = {}
+    panels = list(grid.flat[: len(runs)])
+    for ax, (method, track) in zip(panels, runs):
         g = s[(s["method"] == method) & (s["track"] == track)]
+        if scene_data is not None:
+            from generators.preview import draw_floor, floor_index
+
+            for f in sorted(set(floor_index(scene_data, g["gt_z"].to_numpy()).tolist())):
+                for h in draw_floor(ax, scene_data, f, room_names=False, displaced=False):
+                    plan.setdefault(h.get_label(), h)
         ok = g[g["success"]]
-        ax.plot(np.c_[ok["gt_x"], ok["est_x"]].T, np.c_[ok["gt_y"], ok["est_y"]].T, color="0.6", lw=0.8)
-        ax.scatter(g["gt_x"], g["gt_y"], s=14, c="tab:green", label="ground truth")
-        ax.scatter(ok["est_x"], ok["est_y"], s=14, c="tab:red", marker="x", label="estimate")
+        drawn, outside = clip_to_extent(ok[["est_x", "est_y"]].to_numpy(), lo, hi)
+        ax.plot(np.c_[ok["gt_x"], drawn[:, 0]].T, np.c_[ok["gt_y"], drawn[:, 1]].T, color="0.35", lw=0.7, zorder=8)
+        ax.scatter(g["gt_x"], g["gt_y"], s=14, c="tab:green", zorder=9, label=f"true position ({len(g)})")
+        inside = drawn[~outside]
+        ax.scatter(
+            inside[:, 0], inside[:, 1], s=14, c="tab:red", marker="x", zorder=10, label=f"estimate ({len(inside)})"
+        )
+        if outside.any():
+            ax.scatter(
+                drawn[outside, 0],
+                drawn[outside, 1],
+                s=45,
+                c="darkred",
+                marker="X",
+                clip_on=False,
+                zorder=11,
+                label=f"estimate outside the {where} ({int(outside.sum())}), drawn at the edge",
+            )
         failed = g[~g["success"]]
-        ax.scatter(failed["gt_x"], failed["gt_y"], s=40, facecolors="none", edgecolors="k", label="failed")
-        ax.set(title=f"{method} ({track})\n{len(ok)}/{len(g)} localized", xlabel="x [m]", ylabel="y [m]")
-        ax.set_aspect("equal", adjustable="datalim")
+        ax.scatter(
+            failed["gt_x"],
+            failed["gt_y"],
+            s=40,
+            facecolors="none",
+            edgecolors="k",
+            zorder=9,
+            label=f"no pose returned ({len(failed)})",
+        )
+        within = int((ok["t_err_m"] < RECALL_RADIUS_M).sum())
+        ax.set_title(f"{method} ({track})\n{len(ok)}/{len(g)} returned a pose, {within} within 50 cm", fontsize=9)
+        ax.set(xlabel="x [m]", ylabel="y [m]", xlim=(lo[0], hi[0]), ylim=(lo[1], hi[1]))
+        ax.set_aspect("equal", adjustable="box")
         ax.grid(alpha=0.3)
-    axes[0][0].legend(fontsize=7, loc="best")
-    fig.suptitle(f"{scene}: camera positions, top-down")
+        ax.legend(fontsize=6, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2, frameon=False)
+    for ax in grid.flat[len(runs) :]:
+        ax.axis("off")
+    if plan:
+        fig.legend(handles=list(plan.values()), loc="outside lower center", ncol=min(len(plan), 5), fontsize=7)
+    over = " over its floor plan" if plan else ""
+    fig.suptitle(f"{scene}: camera positions, top-down{over}")
     _save(fig, path)
+    return panels
 
 
-def write_leaderboard(results: list[Path], out: Path) -> list[Path]:
-    """Render everything into ``out`` (never inside or around a results directory); returns the files written."""
+def board_scene(data: Path | None, name: str, spec_hashes: Sequence[str] = ()) -> Scene | None:
+    """Scene ``name`` under ``data``, whose floor plan a top-down plot draws; None (the plot goes without,
+    with a warning where it was expected) when there is no ``data``, no such scene, an unreadable one, or
+    one of another spec than the runs' (``spec_hashes``: its plan would not be theirs)."""
+    if data is None:
+        return None
+    root = Path(data) / name
+    if Path(name).name != name or not (root / "scene.json").is_file():
+        log.warning("no scene %s under %s: its top-down plot has no floor plan", name, data)
+        return None
+    try:
+        scene = Scene(root)
+    except DataError as e:
+        log.warning("%s: its top-down plot has no floor plan", e)
+        return None
+    others = sorted({h for h in spec_hashes if isinstance(h, str)} - {scene.spec_hash})
+    if others:
+        log.warning(
+            "%s is spec %s, the runs' is %s: its top-down plot has no floor plan", root, scene.spec_hash, others[0]
+        )
+        return None
+    return scene
+
+
+def write_leaderboard(results: list[Path], out: Path, data: Path | None = None) -> list[Path]:
+    """Render everything into ``out`` (never inside or around a results directory); returns the files written.
+    ``data``: the dataset directory, for each scene's floor plan under its top-down plot."""
     q = recorded_tracks(pool_seeds(load_queries(results)))  # pooled first: seeded runs carry the method's name
     for r in results:
         paths.check_output(out, [r], "--out")
@@ -555,7 +667,8 @@ def write_leaderboard(results: list[Path], out: Path) -> list[Path]:
         plots.append(plots_dir / "recall_vs_lighting.png")
     for scene in sorted(q.loc[q["split"] == "query", "scene"].unique()):
         plots.append(plots_dir / f"topdown_{scene}.png")
-        plot_topdown(q, scene, plots[-1])
+        specs = q.loc[q["scene"] == scene, "spec_hash"] if "spec_hash" in q else []
+        plot_topdown(q, scene, plots[-1], board_scene(data, scene, list(specs)))
     binned = difficulty_table(q)
     difficulty_plots = []
     for track in [t for t in dict.fromkeys(b["track"]) if t != MASK_FREE] or [MASK_FREE]:

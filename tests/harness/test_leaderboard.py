@@ -1,4 +1,4 @@
-"""The board's robustness table, provenance line, data version and recall against difficulty."""
+"""The board's robustness table, provenance line, data version, recall against difficulty and top-down plots."""
 
 from __future__ import annotations
 
@@ -10,14 +10,19 @@ import pytest
 
 from openreloc_bench.harness.leaderboard import (
     binned_recall,
+    board_scene,
+    clip_to_extent,
     data_versions,
     plot_recall_vs_difficulty,
+    plot_topdown,
     provenance,
     robustness_drops,
+    topdown_extent,
     write_leaderboard,
 )
 from openreloc_bench.harness.score import DIFFICULTY_AXES
 from openreloc_bench.harness.tables import backfill_difficulty
+from tests.generators.test_preview import write_plan_scene
 
 
 def rows(method: str, track: str, recalls: dict[str, tuple[float, float]], seeds: dict[str, int]) -> pd.DataFrame:
@@ -141,3 +146,59 @@ def test_boards_name_the_data_version_they_score(tmp_path: Path) -> None:
     )
     assert data_versions(q.assign(data_version=[1, 2, 2])) == "data v1 + v2"
     assert data_versions(q) == "data v2"
+
+
+def topdown_queries(scene: str = "plan") -> pd.DataFrame:
+    """Three queries of one run: one estimate 10 cm off, one 17 m away (outside the building), one failed."""
+    gt = np.array([[1.0, 1.0], [-2.0, 1.0], [2.0, -2.0]])
+    est = np.array([[1.1, 1.0], [19.0, 1.0], [np.nan, np.nan]])
+    return pd.DataFrame(
+        {
+            "method": "m", "track": "predicted", "scene": scene, "split": "query",
+            "query": [f"query/{i:06d}" for i in range(3)], "success": [True, True, False],
+            "gt_x": gt[:, 0], "gt_y": gt[:, 1], "gt_z": 1.5, "est_x": est[:, 0], "est_y": est[:, 1], "est_z": 1.5,
+            "t_err_m": [0.1, 17.0, np.inf], "spec_hash": "tiny-0",
+        }
+    )  # fmt: skip
+
+
+def test_topdown_extent_is_the_building_or_the_true_cameras() -> None:
+    gt = np.array([[0.0, 0.0], [1.0, 2.0], [np.nan, np.nan]])
+    lo, hi, what = topdown_extent(gt)
+    assert what == "view" and lo.tolist() == [-2.0, -2.0] and hi.tolist() == [3.0, 4.0]
+    drawn, outside = clip_to_extent(np.array([[0.5, 0.5], [20.0, -9.0]]), lo, hi)
+    assert outside.tolist() == [False, True] and drawn.tolist() == [[0.5, 0.5], [3.0, -2.0]]
+
+
+def test_topdown_over_the_floor_plan_shows_estimates_that_left_the_building(tmp_path: Path) -> None:
+    scene = write_plan_scene(tmp_path / "plan")
+    lo, hi, what = topdown_extent(np.zeros((1, 2)), scene)
+    assert what == "building" and lo.tolist() == [-4.5, -4.5] and hi.tolist() == [4.5, 4.5]
+    (ax,) = plot_topdown(topdown_queries(), "plan", tmp_path / "t.png", scene)
+    assert ax.get_title() == "m (predicted)\n2/3 returned a pose, 1 within 50 cm"
+    assert [t.get_text() for t in ax.get_legend().get_texts()] == [
+        "true position (3)",
+        "estimate (1)",
+        "estimate outside the building (1), drawn at the edge",
+        "no pose returned (1)",
+    ]
+    edge = next(c for c in ax.collections if c.get_label().startswith("estimate outside"))
+    assert edge.get_offsets().tolist() == [[4.5, 1.0]]
+    plan = [t.get_text() for t in ax.figure.legends[0].get_texts()]
+    assert plan == ["room: kitchen", "room: office", "walls", "doors", "objects (2)"]  # moves belong to another split
+    assert ax.figure.get_suptitle() == "plan: camera positions, top-down over its floor plan"
+    (ax,) = plot_topdown(topdown_queries(), "plan", tmp_path / "t.png")
+    assert not ax.figure.legends and "estimate outside the view (1), drawn at the edge" in [
+        t.get_text() for t in ax.get_legend().get_texts()
+    ]
+
+
+def test_board_scene_only_draws_the_plan_of_the_scene_the_runs_ran_on(tmp_path: Path, caplog) -> None:
+    write_plan_scene(tmp_path / "data" / "plan")
+    assert board_scene(None, "plan") is None
+    assert board_scene(tmp_path / "data", "plan", ["tiny-0"]).name == "plan"
+    assert board_scene(tmp_path / "data", "plan", ["tiny-7"]) is None and "is spec tiny-0" in caplog.text
+    assert board_scene(tmp_path / "data", "elsewhere") is None and "no scene elsewhere" in caplog.text
+    out = tmp_path / "board"
+    write_leaderboard([results_dir(tmp_path / "r", "m")], out, tmp_path / "data")  # scene s1: not there, no plan
+    assert (out / "plots" / "topdown_s1.png").is_file()

@@ -27,7 +27,7 @@ import pandas as pd  # noqa: E402
 from openreloc_bench.data import io, paths  # noqa: E402
 from openreloc_bench.data.scene import Scene  # noqa: E402
 from openreloc_bench.errors import DataError  # noqa: E402
-from openreloc_bench.harness.ablations import ROBUSTNESS_ROWS  # noqa: E402
+from openreloc_bench.harness.ablations import ABLATION_ROWS, ROBUSTNESS_ROWS, ablation_label  # noqa: E402
 from openreloc_bench.harness.metrics import cumulative_curve, summarize  # noqa: E402
 from openreloc_bench.harness.score import QUERY_COLUMNS  # noqa: E402
 from openreloc_bench.harness.tables import (  # noqa: E402
@@ -71,9 +71,13 @@ TRACK_TITLES = {
 """The tracks in the order the board shows them, with the heading of each one's table."""
 
 
-def _track_rank(track: pd.Series) -> pd.Series:
+def _rank_of(track: str) -> int:
     order = list(TRACK_TITLES)
-    return track.map(lambda t: order.index(t) if t in order else len(order))
+    return order.index(track) if track in order else len(order)
+
+
+def _track_rank(track: pd.Series) -> pd.Series:
+    return track.map(_rank_of)
 
 
 BOARD_INPUT_COLUMNS = (*SCENE_KEYS, *QUERY_COLUMNS, "map_hash", "config_hash", "spec_hash", "git_commit")
@@ -127,17 +131,127 @@ def board(suite: pd.DataFrame) -> pd.DataFrame:
     return b
 
 
+def track_groups(rows: pd.DataFrame) -> list[tuple[str, pd.DataFrame]]:
+    """``rows`` (with a ``track`` column) per track, in the board's order (:data:`TRACK_TITLES`), each
+    with the rows of the methods that read no masks, which stand in every track; those rows alone, under
+    ``MASK_FREE``, when no method ran on a track."""
+    free = rows[rows["track"] == MASK_FREE]
+    tracks = sorted(set(rows["track"]) - {MASK_FREE}, key=lambda t: (_rank_of(t), t))
+    groups = [(t, pd.concat([rows[rows["track"] == t], free])) for t in tracks]
+    return groups if groups or free.empty else [(MASK_FREE, free)]
+
+
 def _by_track(b: pd.DataFrame) -> list[tuple[str, pd.DataFrame]]:
-    """The board's rows cut into one table per track, in the board's order, each with its heading; the
-    mask-free methods' rows stand in every track's table (alone when no method ran on a track)."""
-    free = b[b["track"] == MASK_FREE]
-    tables = []
-    for track, t in b[b["track"] != MASK_FREE].groupby("track", sort=False):
-        t = pd.concat([t, free]).sort_values(["split", "recall_25cm", "recall_50cm"], ascending=[True, False, False])
-        tables.append((TRACK_TITLES.get(track, f"{track} track"), t))
-    if not tables and not free.empty:
-        tables.append(("Methods that read no masks (the same on both tracks)", free))
-    return tables
+    """The board's rows cut into one table per track (:func:`track_groups`), each with its heading."""
+    free = "Methods that read no masks (the same on both tracks)"
+    return [
+        (
+            TRACK_TITLES.get(track, free if track == MASK_FREE else f"{track} track"),
+            t.sort_values(["split", "recall_25cm", "recall_50cm"], ascending=[True, False, False]),
+        )
+        for track, t in track_groups(b)
+    ]
+
+
+HEADLINE_SPLIT = "query"
+"""The split a board's verdict reads (the other splits are the robustness variants of it)."""
+DIAGNOSTICS = ("openreloc-oracle-association",)
+"""Rows a board shows that are no method: ``openreloc`` given the true landmark association, which bounds
+what follows the association."""
+ABLATIONS = tuple(ablation_label(r) for r in ABLATION_ROWS)
+"""The labels of ``openreloc``'s ablation variants (``openreloc+<row>``), parts of one method."""
+
+
+def _recall(v: float) -> str:
+    return f"{v:.1f}"
+
+
+def _names(methods: Sequence[str]) -> str:
+    """'a', 'a and b', 'a, b and c'."""
+    return methods[0] if len(methods) == 1 else f"{', '.join(methods[:-1])} and {methods[-1]}"
+
+
+def _leaders(rows: pd.DataFrame, col: str) -> tuple[list[str], float, pd.Series | None]:
+    """The methods with the best ``col`` (equal as the board prints them, to 0.1), that value, and the
+    best of the rest (None when every method ties)."""
+    shown = rows[col].round(1)
+    top = shown.max()
+    rest = rows.assign(_shown=shown)[shown < top].sort_values(["_shown", "method"], ascending=[False, True])
+    return sorted(rows.loc[shown == top, "method"]), top, (rest.iloc[0] if len(rest) else None)
+
+
+def _at(rows: pd.DataFrame, col: str, cm: int) -> tuple[list[str], str, list[str]]:
+    """The leaders on ``col``, 'at 50 cm (66.7 vs b 66.3)' (the best of the rest after 'vs', where there
+    is one) and the methods that names, leaders first."""
+    leaders, top, runner = _leaders(rows, col)
+    vs = "" if runner is None else f" vs {runner.method} {_recall(runner[col])}"
+    return leaders, f"at {cm} cm ({_recall(top)}{vs})", [*leaders, *([] if runner is None else [runner.method])]
+
+
+def _map_size(row: pd.Series) -> str:
+    v = row.get("map_mb", np.nan)
+    return f"{_fmt('map_mb', v)} MB" if pd.notna(v) and v > 0 else "not recorded"
+
+
+def track_verdict(rows: pd.DataFrame) -> str:
+    """Who leads one track's rows (one per method: ``method``, ``recall_50cm``, ``recall_25cm``,
+    ``map_mb``) at 50 cm and at 25 cm, with the recall of the best of the rest, and the map size of every
+    method it names."""
+    rows = rows.drop_duplicates("method")
+    sizes = {r.method: _map_size(r) for _, r in rows.iterrows()}
+    if len(rows) == 1:
+        r = rows.iloc[0]
+        return (
+            f"only {r.method} ran ({_recall(r.recall_50cm)} at 50 cm, {_recall(r.recall_25cm)} at 25 cm; "
+            f"map size {sizes[r.method]})"
+        )
+    lead50, at50, named50 = _at(rows, "recall_50cm", 50)
+    lead25, at25, named25 = _at(rows, "recall_25cm", 25)
+    text = f"{_names(lead50)} {'tie' if len(lead50) > 1 else 'leads'} {at50}"
+    if lead25 == lead50:
+        text += f" and {at25}"
+    else:
+        text += f", {_names(lead25)}{' tie' if len(lead25) > 1 else ''} {at25}"
+    named = list(dict.fromkeys([*named50, *named25]))
+    return f"{text}; map size: {', '.join(f'{m} {sizes[m]}' for m in named)}"
+
+
+TRACK_NAMES = {
+    "predicted": "Predicted track",
+    "oracle-mask": "Oracle-mask track",
+    MASK_FREE: "Both tracks (no method reads masks)",
+}
+"""What the verdict calls each track's comparison (:func:`track_groups`)."""
+
+
+def verdict(b: pd.DataFrame, split: str = HEADLINE_SPLIT) -> str:
+    """The board's verdict, one line made from its rows (columns ``method``, ``track``, ``split``,
+    ``recall_50cm``, ``recall_25cm``, ``map_mb``): per track, in the board's order, who leads on ``split``
+    at 50 cm and at 25 cm, by how much, and at what map size (:func:`track_verdict`). Methods that read
+    no masks stand in every track's comparison. :data:`DIAGNOSTICS` and :data:`ABLATIONS` are not weighed
+    (the line says so where the board has some), unless a track holds nothing else."""
+    s = b[b["split"] == split]
+    if s.empty:
+        return f"No method ran the {split} split: no verdict."
+    sentences, aside = [], set()
+    for track, rows in track_groups(s):
+        out = rows["method"].isin([*DIAGNOSTICS, *ABLATIONS]).to_numpy()
+        if out.all():  # nothing else on the track: weigh what there is
+            out = np.zeros(len(rows), dtype=bool)
+        aside |= set(rows.loc[out, "method"])
+        sentences.append(f"{TRACK_NAMES.get(track, f'{track} track')}: {track_verdict(rows[~out])}.")
+    skipped = [f"the diagnostic {m}" for m in sorted(aside & set(DIAGNOSTICS))]
+    if aside & set(ABLATIONS):
+        n = len(aside & set(ABLATIONS))
+        skipped.append(f"{n} ablation variant{'s' if n > 1 else ''} of openreloc")
+    if skipped:
+        sentences.append(f"Not weighed: {_names(skipped)}.")
+    return " ".join(sentences)
+
+
+def verdict_lead(split: str = HEADLINE_SPLIT) -> str:
+    """What a board's verdict line is headed with."""
+    return f"Verdict ({split} split, recall [%])"
 
 
 def recorded_tracks(q: pd.DataFrame) -> pd.DataFrame:
@@ -209,11 +323,14 @@ DIFFICULTY_TEXT = (
 
 
 def to_markdown(b: pd.DataFrame, scenes: pd.DataFrame, versions: str = "", difficulty_plots: Sequence[str] = ()) -> str:
-    """The board: one table per track, the robustness table, per-scene tables, map sizes and the
-    recall-vs-difficulty plots (``difficulty_plots``, paths relative to the board)."""
+    """The board: its verdict (:func:`verdict`), one table per track (the predicted track's first), the
+    robustness table, per-scene tables, map sizes and the recall-vs-difficulty plots (``difficulty_plots``,
+    paths relative to the board)."""
     head = [BOARD_COLUMNS[c] for c in b.columns]
     lines = [
         f"# {_title(versions)}",
+        "",
+        f"**{verdict_lead()}:** {verdict(b)}",
         "",
         "Recall = share of all queries (failures count); MTE/MRE = mean error of the queries within the threshold.",
         "",
@@ -273,8 +390,8 @@ def _html_table(title: str, head: list[str], rows: list[list[str]]) -> str:
 
 
 def to_html(b: pd.DataFrame, plots: list[str], versions: str = "", difficulty_plots: Sequence[str] = ()) -> str:
-    """The sortable page: the board's tables, the robustness table, ``plots`` side by side and the
-    recall-vs-difficulty plots full width."""
+    """The sortable page: the board's verdict, its tables, the robustness table, ``plots`` side by side
+    and the recall-vs-difficulty plots full width."""
     head = [BOARD_COLUMNS[c] for c in b.columns]
     tables = "".join(
         _html_table(title, head, [[_fmt(c, r[c]) for c in b.columns] for _, r in t.iterrows()])
@@ -303,8 +420,10 @@ td {{ white-space: nowrap; }} td:first-child, td:nth-child(2), td:nth-child(3) {
 tr:nth-child(even) {{ background: #fafafa; }}
 img {{ max-width: 48%; float: left; margin: 1%; }}
 img.wide {{ max-width: 98%; float: none; }} .clear {{ clear: both; }}
+.verdict {{ font-size: 16px; background: #eef4fb; border-left: 4px solid #2a6ebb; padding: 8px 12px; }}
 </style></head><body>
 <h1>{html.escape(_title(versions))}</h1>
+<p class="verdict"><strong>{html.escape(verdict_lead())}:</strong> {html.escape(verdict(b))}</p>
 <p>Recall = share of all queries (failed queries count). MTE/MRE = mean error of the queries within the
 threshold. Click a column header to sort. {html.escape(provenance(b))}</p>
 {tables}{imgs}

@@ -11,8 +11,9 @@ from __future__ import annotations
 import html
 import logging
 import math
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from pathlib import Path
+from typing import Any
 
 import matplotlib
 import matplotlib.artist
@@ -444,94 +445,137 @@ def _save(fig: plt.Figure, path: Path) -> None:
     plt.close(fig)
 
 
-def plot_cumulative(q: pd.DataFrame, col: str, xmax: float, xlabel: str, path: Path) -> None:
-    """Share of queries under each error, one curve per (method, track) on the plain query split."""
+TRACK_MARKERS = {"predicted": "o", "oracle-mask": "s", MASK_FREE: "^"}
+TRACK_LINES = {"predicted": "-", "oracle-mask": "--", MASK_FREE: "-."}
+TRACK_HATCHES = {"predicted": "", "oracle-mask": "///", MASK_FREE: ".."}
+"""How the plots tell the tracks apart: the colour is the method's (:func:`method_colors`)."""
+
+
+def method_colors(methods: Iterable[str]) -> dict[str, tuple[float, ...]]:
+    """One colour per method (by name), the same in each plot of a board: tab10's, then tab20b's, so that
+    a board of the whole plan (nine methods and openreloc's ablation variants) repeats none."""
+    palette = [*plt.get_cmap("tab10").colors, *plt.get_cmap("tab20b").colors]
+    return {m: palette[k % len(palette)] for k, m in enumerate(sorted(set(methods)))}
+
+
+def _style(track: str) -> dict[str, str]:
+    return {"marker": TRACK_MARKERS.get(track, "D"), "ls": TRACK_LINES.get(track, ":")}
+
+
+def plot_cumulative(
+    q: pd.DataFrame, col: str, xmax: float, xlabel: str, path: Path, colors: dict[str, Any] | None = None
+) -> plt.Axes:
+    """Share of queries under each error, one curve per (method, track) on the plain query split: the
+    method's colour, the track's line style. Returns the plot."""
     grid = np.linspace(0, xmax, 400)
+    s = q[q["split"] == HEADLINE_SPLIT]
+    colors = colors or method_colors(s["method"])
     fig, ax = plt.subplots(figsize=(6, 4))
-    for (method, track), g in q[q["split"] == "query"].groupby(["method", "track"]):
-        ax.plot(grid, cumulative_curve(g[col].to_numpy(), grid), label=f"{method} ({track})")
+    for (method, track), g in s.groupby(["method", "track"]):
+        curve = cumulative_curve(g[col].to_numpy(), grid)
+        ax.plot(grid, curve, TRACK_LINES.get(track, ":"), color=colors[method], label=f"{method} ({track})")
     ax.set(xlabel=xlabel, ylabel="queries [%]", ylim=(0, 100), xlim=(0, xmax), title=f"Cumulative {xlabel}")
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=7 if s.groupby(["method", "track"]).ngroups > 6 else 8)
     _save(fig, path)
+    return ax
 
 
-def plot_scene_recall(scenes: pd.DataFrame, path: Path) -> None:
-    """Recall@50cm (light) and @25cm (dark) per scene and method on the plain query split."""
-    s = scenes[scenes["split"] == "query"]
-    labels = sorted({f"{m} ({t})" for m, t in zip(s["method"], s["track"])})
+def plot_scene_recall(scenes: pd.DataFrame, path: Path, colors: dict[str, Any] | None = None) -> plt.Axes:
+    """Recall@50cm (light) and @25cm (dark) per scene and (method, track) on the plain query split: the
+    method's colour, the track's hatch. Returns the plot."""
+    s = scenes[scenes["split"] == HEADLINE_SPLIT]
+    runs = sorted({(m, t) for m, t in zip(s["method"], s["track"])}, key=lambda r: (_rank_of(r[1]), r))
+    colors = colors or method_colors(s["method"])
     names = sorted(s["scene"].unique())
-    x, width = np.arange(len(names)), 0.8 / max(len(labels), 1)
-    fig, ax = plt.subplots(figsize=(max(6, 1.2 * len(names) * max(1, len(labels) / 2)), 4))
-    cmap = plt.get_cmap("tab10")
-    for k, label in enumerate(labels):
-        g = s[[f"{m} ({t})" == label for m, t in zip(s["method"], s["track"])]].set_index("scene").reindex(names)
-        bars = ax.bar(x + k * width, g["recall_50cm"], width, color=cmap(k % 10), alpha=0.45)
+    x, width = np.arange(len(names)), 0.8 / max(len(runs), 1)
+    fig, ax = plt.subplots(figsize=(max(6, 1.2 * len(names) * max(1, len(runs) / 2)), 4))
+    for k, (method, track) in enumerate(runs):
+        g = s[(s["method"] == method) & (s["track"] == track)].set_index("scene").reindex(names)
+        look = {"color": colors[method], "hatch": TRACK_HATCHES.get(track, "xx"), "edgecolor": "white", "lw": 0}
+        bars = ax.bar(x + k * width, g["recall_50cm"], width, alpha=0.45, **look)
         ax.bar_label(bars, fmt="%.0f", fontsize=7)
-        ax.bar(x + k * width, g["recall_25cm"], width, color=cmap(k % 10), label=label)
-    ax.set_xticks(x + width * (len(labels) - 1) / 2, names, rotation=30, ha="right")
+        ax.bar(x + k * width, g["recall_25cm"], width, label=f"{method} ({track})", **look)
+    ax.set_xticks(x + width * (len(runs) - 1) / 2, names, rotation=30, ha="right")
     ax.set(ylabel="recall [%]  (light @50cm, dark @25cm)", ylim=(0, 100), title="Recall per scene")
     ax.legend(fontsize=8)
     _save(fig, path)
+    return ax
 
 
-TRACK_MARKERS = {"predicted": "o", "oracle-mask": "s", MASK_FREE: "^"}
-
-
-def plot_recall_vs_map_size(suite: pd.DataFrame, path: Path) -> None:
-    """The paper's trade-off: recall on the query split against map size per scene, one point per
-    (method, track); filled @25cm, hollow @50cm, joined by a line."""
-    s = suite[(suite["split"] == "query") & (suite["map_mb"] > 0)]
-    fig, ax = plt.subplots(figsize=(7, 4.5))
-    cmap = plt.get_cmap("tab10")
-    for k, ((method, track), g) in enumerate(s.groupby(["method", "track"])):
-        r = g.iloc[0]
-        color, marker = cmap(k % 10), TRACK_MARKERS.get(track, "D")
-        ax.plot([r.map_mb] * 2, [r.recall_25cm, r.recall_50cm], color=color, lw=1, alpha=0.6)
-        ax.scatter(r.map_mb, r.recall_50cm, marker=marker, facecolors="none", edgecolors=color)
-        ax.scatter(r.map_mb, r.recall_25cm, marker=marker, color=color, label=f"{method} ({track})")
-    ax.set_xscale("log")
-    ax.xaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(lambda v, _: f"{v:g}"))
-    ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
-    ax.set(xlabel="map size per scene [MB]", ylabel="recall [%]  (filled @25cm, hollow @50cm)", ylim=(0, 100))
-    ax.set_title("Recall vs map size (query split)")
-    ax.grid(alpha=0.3, which="both")
-    ax.legend(fontsize=7, loc="center left", bbox_to_anchor=(1.0, 0.5))
+def plot_recall_vs_map_size(suite: pd.DataFrame, path: Path, colors: dict[str, Any] | None = None) -> list[plt.Axes]:
+    """The paper's trade-off on the query split, one panel per track (:func:`track_groups`: the methods
+    that read no masks in each): every method's R@25cm (filled) and R@50cm (hollow) at its map size per
+    scene, joined by a line. A method without a recorded map size (a result scored by ``score``) is drawn
+    on the panel's left edge at its recall. Returns the panels (none when no method ran the query split)."""
+    s = suite[suite["split"] == HEADLINE_SPLIT]
+    groups = track_groups(s)
+    colors = colors or method_colors(s["method"])
+    fig, grid = plt.subplots(
+        1, max(len(groups), 1), figsize=(4.5 * max(len(groups), 1) + 2.5, 4.5), squeeze=False, sharey=True
+    )
+    sizes = s.loc[s["map_mb"] > 0, "map_mb"]
+    xlim = (sizes.min() / 2, sizes.max() * 2) if len(sizes) else (0.1, 10.0)
+    for ax, (track, rows) in zip(grid.flat, groups):
+        for r in rows.sort_values("method").itertuples():
+            label = r.method if r.track == track else f"{r.method} ({r.track})"
+            mapped = bool(r.map_mb > 0)  # NaN: no map recorded
+            where = {} if mapped else {"transform": ax.get_yaxis_transform(), "clip_on": False}
+            x = r.map_mb if mapped else 0.0
+            look = {"marker": TRACK_MARKERS.get(r.track, "D"), "color": colors[r.method]}
+            ax.plot([x, x], [r.recall_25cm, r.recall_50cm], color=look["color"], lw=1, alpha=0.6, **where)
+            ax.scatter(x, r.recall_50cm, marker=look["marker"], facecolors="none", edgecolors=look["color"], **where)
+            ax.scatter(
+                x, r.recall_25cm, **look, label=label if mapped else f"{label}: no map size, on the axis", **where
+            )
+        ax.set_xscale("log")
+        ax.set_xlim(*xlim)
+        ax.xaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(lambda v, _: f"{v:g}"))
+        ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
+        ax.set(xlabel="map size per scene [MB]", ylim=(-3, 103))
+        ax.set_title(TRACK_NAMES.get(track, f"{track} track"), fontsize=10)
+        ax.grid(alpha=0.3, which="both")
+        ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=2, frameon=False)
+    grid[0][0].set_ylabel("recall [%]  (filled @25cm, hollow @50cm)")
+    if not groups:
+        grid[0][0].text(
+            0.5, 0.5, f"no method ran the {HEADLINE_SPLIT} split", ha="center", transform=grid[0][0].transAxes
+        )
+    fig.suptitle(f"Recall vs map size ({HEADLINE_SPLIT} split)")
     _save(fig, path)
+    return list(grid.flat[: len(groups)])
 
 
 LIGHT_SPLITS = ("query", "query_light1", "query_light2", "query_light3", "query_light4")
 """The lighting levels in order: the original lighting, then the four decayed variants."""
+LIGHT_NAMES = ("original", "light 1", "light 2", "light 3", "light 4")
 
 
-def plot_recall_vs_lighting(suite: pd.DataFrame, path: Path) -> bool:
-    """R@50cm (solid) and R@25cm (dashed) per lighting level, one colour per (method, track) run on the
-    query split and at least one decayed level; False (nothing drawn) when there is none."""
+def plot_recall_vs_lighting(suite: pd.DataFrame, path: Path, colors: dict[str, Any] | None = None) -> list[plt.Axes]:
+    """R@50cm (solid) and R@25cm (dashed) per lighting level, for every (method, track) run on any of
+    them: the method's colour, the track's marker; a run of one level alone is its points (the legend says
+    which). Returns the plot, or nothing (and no file) when no method ran a decayed level."""
     s = suite[suite["split"].isin(LIGHT_SPLITS)]
-    runs = [(key, g) for key, g in s.groupby(["method", "track"]) if len(g) > 1 and "query" in set(g["split"])]
-    if not runs:
-        return False
+    if not s["split"].isin(LIGHT_SPLITS[1:]).any():
+        return []
+    colors = colors or method_colors(s["method"])
     fig, ax = plt.subplots(figsize=(7, 4.5))
-    cmap = plt.get_cmap("tab10")
-    for k, ((method, track), g) in enumerate(runs):
+    x = np.arange(len(LIGHT_SPLITS))
+    runs = sorted(s.groupby(["method", "track"]), key=lambda r: (_rank_of(r[0][1]), r[0]))
+    for (method, track), g in runs:
         g = g.set_index("split").reindex(LIGHT_SPLITS)
-        x = np.arange(len(LIGHT_SPLITS))
-        ax.plot(
-            x,
-            g["recall_50cm"],
-            "-",
-            marker=TRACK_MARKERS.get(track, "D"),
-            color=cmap(k % 10),
-            label=f"{method} ({track})",
-        )
-        ax.plot(x, g["recall_25cm"], "--", color=cmap(k % 10), alpha=0.7)
-    ax.set_xticks(np.arange(len(LIGHT_SPLITS)), ["original", "light 1", "light 2", "light 3", "light 4"])
-    ax.set(xlabel="lighting decay level", ylabel="recall [%]  (solid @50cm, dashed @25cm)", ylim=(0, 100))
+        ran = g["recall_50cm"].notna().to_numpy()  # a line joins the levels run, skipping the others
+        alone = "" if ran.sum() > 1 else f", {LIGHT_NAMES[int(ran.argmax())]} only"
+        look = {"marker": TRACK_MARKERS.get(track, "D"), "color": colors[method]}
+        ax.plot(x[ran], g["recall_50cm"][ran], "-", **look, label=f"{method} ({track}){alone}")
+        ax.plot(x[ran], g["recall_25cm"][ran], "--", **look, mfc="none", alpha=0.7)
+    ax.set_xticks(x, LIGHT_NAMES)
+    ax.set(xlabel="lighting decay level", ylabel="recall [%]  (solid @50cm, dashed @25cm)", ylim=(-3, 103))
     ax.set_title("Recall vs lighting")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7, loc="center left", bbox_to_anchor=(1.0, 0.5))
     _save(fig, path)
-    return True
+    return [ax]
 
 
 DIFFICULTY_BINS: dict[str, tuple[str, tuple[float, ...] | None]] = {
@@ -596,7 +640,9 @@ def difficulty_table(q: pd.DataFrame) -> pd.DataFrame:
     return pd.concat([binned_recall(q, axis, bins) for axis, (_, bins) in DIFFICULTY_BINS.items()], ignore_index=True)
 
 
-def plot_recall_vs_difficulty(binned: pd.DataFrame, title: str, path: Path) -> list[str]:
+def plot_recall_vs_difficulty(
+    binned: pd.DataFrame, title: str, path: Path, colors: dict[str, Any] | None = None
+) -> list[str]:
     """One panel per difficulty axis of ``binned`` (:func:`binned_recall` rows) with more than one bin:
     R@50cm (solid) and R@25cm (dashed) per bin, one colour per method, each bin's query count under its
     label. Returns the axes drawn; none (and no file) when no axis has two bins (all queries alike, or no
@@ -608,16 +654,16 @@ def plot_recall_vs_difficulty(binned: pd.DataFrame, title: str, path: Path) -> l
     fig, grid = plt.subplots(
         math.ceil(len(axes) / ncols), ncols, figsize=(3.6 * ncols, 3.3 * math.ceil(len(axes) / ncols)), squeeze=False
     )
-    cmap = plt.get_cmap("tab10")
     methods = sorted(binned["method"].unique())
+    colors = colors or method_colors(methods)
     for ax, axis in zip(grid.flat, axes):
         a = binned[binned["axis"] == axis]
         bins = a.groupby("bin").agg(lo=("lo", "first"), n=("n", "max")).sort_values("lo")
         x = np.arange(len(bins))
-        for k, method in enumerate(methods):
+        for method in methods:
             g = a[a["method"] == method].set_index("bin").reindex(bins.index)
-            ax.plot(x, g["recall_50cm"], "-", marker="o", ms=3, color=cmap(k % 10))
-            ax.plot(x, g["recall_25cm"], "--", marker="o", ms=3, mfc="none", color=cmap(k % 10), alpha=0.7)
+            ax.plot(x, g["recall_50cm"], "-", marker="o", ms=3, color=colors[method])
+            ax.plot(x, g["recall_25cm"], "--", marker="o", ms=3, mfc="none", color=colors[method], alpha=0.7)
         ax.set_xticks(x, [f"{b}\nn={n}" for b, n in zip(bins.index, bins["n"])], fontsize=7)
         ax.set(ylim=(-3, 103), title=DIFFICULTY_BINS[axis][0])  # lines at 0 and 100 stay visible
         ax.title.set_fontsize(9)
@@ -627,7 +673,7 @@ def plot_recall_vs_difficulty(binned: pd.DataFrame, title: str, path: Path) -> l
     for ax in grid.flat[len(axes) :]:
         ax.axis("off")
     Line2D = matplotlib.lines.Line2D
-    handles = [Line2D([], [], color=cmap(k % 10), marker="o", ms=3, label=m) for k, m in enumerate(methods)]
+    handles = [Line2D([], [], color=colors[m], marker="o", ms=3, label=m) for m in methods]
     handles += [Line2D([], [], color="0.4", ls=ls, label=f"R@{t}") for ls, t in (("-", "50cm"), ("--", "25cm"))]
     grid[0][-1].legend(handles=handles, fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0))
     fig.suptitle(f"Recall vs difficulty, {title}: all query splits pooled")
@@ -777,12 +823,13 @@ def write_leaderboard(results: list[Path], out: Path, data: Path | None = None) 
         plots_dir / "cumulative_rotation.png",
         plots_dir / "recall_per_scene.png",
     ]
-    plot_cumulative(q, "t_err_m", 1.0, "translation error [m]", plots[0])
-    plot_cumulative(q, "r_err_deg", 20.0, "rotation error [°]", plots[1])
-    plot_scene_recall(scenes, plots[2])
+    colors = method_colors(q["method"])  # a method looks the same in every plot of the board
+    plot_cumulative(q, "t_err_m", 1.0, "translation error [m]", plots[0], colors)
+    plot_cumulative(q, "r_err_deg", 20.0, "rotation error [°]", plots[1], colors)
+    plot_scene_recall(scenes, plots[2], colors)
     plots.append(plots_dir / "recall_vs_map_size.png")
-    plot_recall_vs_map_size(suite, plots[-1])
-    if plot_recall_vs_lighting(suite, plots_dir / "recall_vs_lighting.png"):
+    plot_recall_vs_map_size(suite, plots[-1], colors)
+    if plot_recall_vs_lighting(suite, plots_dir / "recall_vs_lighting.png", colors):
         plots.append(plots_dir / "recall_vs_lighting.png")
     for scene in sorted(q.loc[q["split"] == "query", "scene"].unique()):
         plots.append(plots_dir / f"topdown_{scene}.png")
@@ -793,7 +840,7 @@ def write_leaderboard(results: list[Path], out: Path, data: Path | None = None) 
     for track in [t for t in dict.fromkeys(b["track"]) if t != MASK_FREE] or [MASK_FREE]:
         path = plots_dir / f"difficulty_{track}.png"
         title = "methods that read no masks" if track == MASK_FREE else f"{track} track"
-        if plot_recall_vs_difficulty(binned[binned["track"].isin([track, MASK_FREE])], title, path):
+        if plot_recall_vs_difficulty(binned[binned["track"].isin([track, MASK_FREE])], title, path, colors):
             difficulty_plots.append(path)
     versions = data_versions(q)
     rel = [str(p.relative_to(out)) for p in difficulty_plots]

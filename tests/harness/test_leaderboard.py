@@ -10,11 +10,17 @@ import pandas as pd
 import pytest
 
 from openreloc_bench.harness.leaderboard import (
+    ABLATIONS,
     binned_recall,
     board_scene,
     clip_to_extent,
     data_versions,
+    method_colors,
+    plot_cumulative,
     plot_recall_vs_difficulty,
+    plot_recall_vs_lighting,
+    plot_recall_vs_map_size,
+    plot_scene_recall,
     plot_topdown,
     provenance,
     robustness_drops,
@@ -113,6 +119,67 @@ def test_boards_open_with_the_verdict_then_the_predicted_table_then_the_oracle_m
     page = to_html(b, [])
     assert page.index("<h1>") < page.index('<p class="verdict"><strong>Verdict (query split, recall [%]):</strong>')
     assert page.index('class="verdict"') < page.index("<h2>Predicted track (headline)") < page.index("<h2>Oracle-mask")
+
+
+def legend(ax) -> list[str]:
+    return [t.get_text() for t in ax.get_legend().get_texts()]
+
+
+def test_recall_vs_map_size_has_a_panel_per_track_with_every_method(tmp_path: Path) -> None:
+    png = tmp_path / "p.png"
+    suite = pd.concat(
+        [
+            runs(("a", "predicted", 60.0, 40.0, 0.7), ("a", "oracle-mask", 90.0, 80.0, 0.68),
+                 ("free", "mask-free", 66.0, 65.0, 221.0), ("sub", "predicted", 50.0, 30.0, np.nan)),
+            runs(("a", "predicted", 10.0, 5.0, 0.7), split="query_light4"),
+        ]
+    )  # fmt: skip
+    pred, oracle = plot_recall_vs_map_size(suite, png)
+    assert (pred.get_title(), oracle.get_title()) == ("Predicted track", "Oracle-mask track")
+    assert legend(pred) == ["a", "free (mask-free)", "sub: no map size, on the axis"]
+    assert legend(oracle) == ["a", "free (mask-free)"]  # the mask-free method stands in both panels
+    filled = {c.get_label(): c.get_offsets().tolist() for c in pred.collections if not c.get_label().startswith("_")}
+    assert filled["a"] == [[0.7, 40.0]] and filled["free (mask-free)"] == [[221.0, 65.0]]
+    assert filled["sub: no map size, on the axis"] == [[0.0, 30.0]]  # x in axes units: the left edge
+    assert plot_recall_vs_map_size(suite[suite["split"] != "query"], png) == []
+
+
+def test_every_plot_of_a_board_draws_every_method(tmp_path: Path) -> None:
+    png = tmp_path / "p.png"
+    methods = [("a", "predicted"), ("a", "oracle-mask"), ("free", "mask-free"), ("sub", "predicted")]
+    q = pd.DataFrame(
+        [{"method": m, "track": t, "split": sp, "t_err_m": 0.1, "r_err_deg": 1.0}
+         for m, t in methods for sp in ("query", "query_light4")]
+    )  # fmt: skip
+    labels = ["a (predicted)", "a (oracle-mask)", "free (mask-free)", "sub (predicted)"]
+    for col in ("t_err_m", "r_err_deg"):
+        assert sorted(legend(plot_cumulative(q, col, 1.0, "error", png))) == sorted(labels)
+    scenes = pd.DataFrame(
+        [{"method": m, "track": t, "split": "query", "scene": sc, "recall_50cm": 50.0, "recall_25cm": 40.0}
+         for m, t in methods for sc in ("s1", "s2")]
+    )  # fmt: skip
+    assert legend(plot_scene_recall(scenes, png)) == [
+        "a (predicted)", "sub (predicted)", "a (oracle-mask)", "free (mask-free)"
+    ]  # fmt: skip
+    suite = pd.concat(
+        [
+            runs(*[(m, t, 50.0, 40.0, 1.0) for m, t in methods]),
+            runs(("a", "predicted", 20.0, 10.0, 1.0), split="query_light2"),
+        ]
+    )
+    (ax,) = plot_recall_vs_lighting(suite, png)
+    assert legend(ax) == [
+        "a (predicted)", "sub (predicted), original only", "a (oracle-mask), original only", "free (mask-free), original only"
+    ]  # fmt: skip
+    assert plot_recall_vs_lighting(suite[suite["split"] == "query"], png) == []  # no decayed level
+
+
+def test_each_method_keeps_one_colour_and_a_whole_plan_repeats_none() -> None:
+    colors = method_colors(["b", "a", "b"])
+    assert list(colors) == ["a", "b"] and colors["a"] != colors["b"]
+    plan = ["openreloc", "openreloc-paper", "goreloc", "sift-pnp", "orb-reloc", "retrieval", "posenet", "nearest-frame",
+            "openreloc-oracle-association", *ABLATIONS]  # fmt: skip
+    assert len(set(method_colors(plan).values())) == len(plan)
 
 
 def test_drops_are_changes_from_the_query_split_in_points() -> None:

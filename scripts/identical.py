@@ -8,6 +8,7 @@ differ and exits 1 if any do. Run ``record`` before and after a change, on the s
 fresh ones (the scenes are hashed too), then ``compare``.
 
     python scripts/identical.py record --suite scenes/smoke.yaml --data D --work W --out before.json
+    python scripts/identical.py record --scenes val1,val6 --data data/validation --work W2 --out val.json
     python scripts/identical.py compare before.json after.json
 """
 
@@ -115,8 +116,9 @@ def record(args: argparse.Namespace) -> None:
     if work.exists():
         sys.exit(f"--work {work} exists; give a new folder")
     results, scrubbed = work / "results", work / "scrubbed"
+    which = ["--scenes", args.scenes] if args.scenes else ["--suite", args.suite]
     for track in TRACKS:
-        cli("eval", "--suite", args.suite, "--methods", args.methods, "--data", args.data,
+        cli("eval", *which, "--methods", args.methods, "--data", args.data,
             "--out", str(results), "--track", track, "--resume")  # fmt: skip
     shutil.copytree(results, scrubbed)
     scrub_tree(scrubbed)
@@ -146,7 +148,8 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = p.add_subparsers(dest="command", required=True)
     r = sub.add_parser("record", help="evaluate, draw the boards, write the manifest")
-    r.add_argument("--suite", required=True, help="suite YAML")
+    r.add_argument("--suite", help="suite YAML")
+    r.add_argument("--scenes", help="comma-separated scenes under --data instead of a suite (e.g. val1,val6)")
     r.add_argument("--data", required=True, help="dataset folder (missing scenes are generated)")
     r.add_argument("--work", required=True, help="new folder for results and boards")
     r.add_argument("--out", required=True, help="manifest JSON to write")
@@ -155,6 +158,8 @@ def main() -> None:
     c.add_argument("a")
     c.add_argument("b")
     args = p.parse_args()
+    if args.command == "record" and not (args.suite or args.scenes):
+        p.error("record needs --suite or --scenes")
     record(args) if args.command == "record" else compare(args)
 
 

@@ -28,7 +28,8 @@ from xml.sax.saxutils import quoteattr
 import numpy as np
 
 from generators.asset_library.core import Part
-from generators.layout import DOOR_H, DOOR_W, WALL_T, Layout
+from generators.layout import Layout
+from generators.layout.model import DOOR_H, DOOR_W, WALL_T
 from generators.materials import DETAIL_M, make_texture, texture_size
 from openreloc_bench import geometry
 from openreloc_bench.data import io

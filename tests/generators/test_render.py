@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from generators import render
-from generators.layout import Instance, Layout, Light, Room, _part, box_mesh
+from generators.layout import Instance, Layout, Light, Room
+from generators.layout.model import box_mesh, make_part
 from generators.render import MAX_MATERIALS, create_renderer, fovy_from_K
 from openreloc_bench import geometry
 from openreloc_bench.errors import ConfigError
@@ -18,7 +19,7 @@ def _box(iid: int, lo, hi, colour: str, category: str, structural: bool) -> Inst
     return Instance(
         id=iid,
         category=category,
-        parts=[_part([box_mesh(lo, hi)], "plaster", colour, iid)],
+        parts=[make_part([box_mesh(lo, hi)], "plaster", colour, iid)],
         transform=np.eye(4),
         structural=structural,
         room="r",
@@ -200,15 +201,17 @@ def test_more_colours_than_materials_is_a_clear_error(monkeypatch) -> None:
 
 
 def test_texture_mapping_covers_a_part_once_with_its_own_placement() -> None:
-    wall = _part([box_mesh((0, 0, 0), (5.0, 0.1, 2.7))], "plaster", "white", seed=11)
+    wall = make_part([box_mesh((0, 0, 0), (5.0, 0.1, 2.7))], "plaster", "white", seed=11)
     v, _, uv, _, image = render.part_surface(wall)
     mapping = render.TextureMapping.of(wall)
-    assert mapping == render.TextureMapping.of(_part([box_mesh((0, 0, 0), (5.0, 0.1, 2.7))], "plaster", "white", 11))
+    assert mapping == render.TextureMapping.of(
+        make_part([box_mesh((0, 0, 0), (5.0, 0.1, 2.7))], "plaster", "white", 11)
+    )
     assert image.shape[:2] == (mapping.size, mapping.size) and mapping.metres * mapping.scale >= np.hypot(5.0, 2.7)
     assert np.all(uv.max(axis=0) - uv.min(axis=0) <= 1.0 + 1e-9)  # the wall never shows its texture twice
-    other = render.TextureMapping.of(_part([box_mesh((0, 0, 0), (5.0, 0.1, 2.7))], "plaster", "white", 12))
+    other = render.TextureMapping.of(make_part([box_mesh((0, 0, 0), (5.0, 0.1, 2.7))], "plaster", "white", 12))
     assert (other.rotation, other.offset) != (mapping.rotation, mapping.offset)  # surfaces do not line up
-    cup = render.TextureMapping.of(_part([box_mesh((0, 0, 0), (0.08, 0.08, 0.1))], "ceramic", "white", 3))
+    cup = render.TextureMapping.of(make_part([box_mesh((0, 0, 0), (0.08, 0.08, 0.1))], "ceramic", "white", 3))
     assert cup.metres == render.DETAIL_M and cup.size == 64
     lo, hi = render.TEXTURE_SCALE
     assert lo <= mapping.scale <= hi and lo <= cup.scale <= hi

@@ -162,7 +162,6 @@ class Layout:
         return g
 
 
-# ------------------------------------------------------------------------------------------------
 class LayoutDraft:
     """A layout while it is built: the scene's one random stream (every choice draws from it in a fixed
     order, so a spec and seed give one layout) and the rooms, doors, lights and instances so far."""
@@ -191,6 +190,7 @@ class LayoutDraft:
         return [r for r in self.rooms if r.floor == f]
 
     def layout(self, footprint: tuple[float, float]) -> Layout:
+        """The finished layout, on a building of ``footprint`` (x length, y depth)."""
         floor_z = [f * self.storey for f in range(self.spec.floors)]
         return Layout(
             self.rooms,

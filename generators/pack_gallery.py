@@ -12,7 +12,8 @@ import cv2
 import numpy as np
 
 from generators.asset_packs import AssetPack
-from generators.layout import Instance, Layout, Light, Room, _part, box_mesh
+from generators.layout import Instance, Layout, Light, Room
+from generators.layout.model import box_mesh, make_part
 from generators.render import create_renderer
 from openreloc_bench import geometry
 from openreloc_bench.data import io
@@ -32,14 +33,20 @@ def _stage(asset) -> Layout:
         Instance(
             1,
             "floor",
-            [_part([box_mesh((-3, -3, -0.1), (3, 3, 0))], "wood", "light brown", 1)],
+            [make_part([box_mesh((-3, -3, -0.1), (3, 3, 0))], "wood", "light brown", 1)],
             np.eye(4),
             True,
             "r",
             0,
         ),
         Instance(
-            2, "wall", [_part([box_mesh((-3, -3.1, 0), (3, -3, 3))], "plaster", "cream", 2)], np.eye(4), True, "r", 0
+            2,
+            "wall",
+            [make_part([box_mesh((-3, -3.1, 0), (3, -3, 3))], "plaster", "cream", 2)],
+            np.eye(4),
+            True,
+            "r",
+            0,
         ),
     ]
     obj = Instance(3, asset.category, asset.parts, T, False, "r", 0, description=asset.description)

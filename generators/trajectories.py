@@ -24,7 +24,8 @@ from scipy import ndimage
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
 
-from generators.layout import GRID_RES, WALL_CLEARANCE, Layout, Room, free_space
+from generators.layout import Layout, Room
+from generators.layout.free_space import GRID_RES, WALL_CLEARANCE, free_space
 from generators.render import Renderer
 from generators.spec import SceneSpec
 from openreloc_bench import geometry

@@ -26,7 +26,7 @@ import numpy as np
 from gymnasium import spaces
 from scipy.sparse.csgraph import dijkstra
 
-from generators.layout import GRID_RES
+from generators.layout.free_space import GRID_RES
 from generators.trajectories import grid_graph
 from openreloc_bench.data import io
 from openreloc_bench.data.scene import ObjectInfo

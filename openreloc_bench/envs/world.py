@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from generators.layout import GRID_RES
+from generators.layout.free_space import GRID_RES
 from generators.render import Renderer, create_renderer  # sets MUJOCO_GL before mujoco loads
 from generators.spec import SceneSpec, spec_hash
 from generators.trajectories import CHECK_WIDTH, MIN_OBJECT_SHARE, Occupancy, occupancy_grid, walkable_region

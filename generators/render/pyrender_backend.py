@@ -1,12 +1,13 @@
 """The pyrender backend: RGB, metric depth and instance ids of a :class:`~generators.layout.Layout`.
 
-Same scene description, same geometry and textures as the MuJoCo backend (:func:`render.part_surface`),
-shaded by pyrender's physically based pipeline (metallic-roughness materials, linear-light shading,
-sRGB output), with the same light selection and the same :class:`render.Culler`. Two choices make its
-depth and ids agree with MuJoCo's: the main framebuffer is single-sampled (pyrender's 4x MSAA resolves
-depth to a sample off the pixel centre, an error of millimetres on grazing surfaces, and blends instance
-colours on edges), and the camera is MuJoCo's symmetric perspective (vertical FOV from K). Nodes are
-drawn and lights summed in a fixed order (:class:`_OrderedScene`), so a spec gives the same bytes.
+Same scene description, same geometry and textures as the MuJoCo backend
+(:func:`~generators.render.base.part_surface`), shaded by pyrender's physically based pipeline
+(metallic-roughness materials, linear-light shading, sRGB output), with the same light selection and the
+same :class:`~generators.render.base.Culler`. Two choices make its depth and ids agree with MuJoCo's: the
+main framebuffer is single-sampled (pyrender's 4x MSAA resolves depth to a sample off the pixel centre,
+an error of millimetres on grazing surfaces, and blends instance colours on edges), and the camera is
+MuJoCo's symmetric perspective (vertical FOV from K). Nodes are drawn and lights summed in a fixed order
+(:class:`_OrderedScene`), so a spec gives the same bytes.
 
 It needs the optional ``pyrender`` extra (the ``pyrender2`` distribution, a numpy-2 fix of pyrender
 0.1.45 that accepts MuJoCo's PyOpenGL). It renders through EGL in the same process as MuJoCo; closing
@@ -22,12 +23,12 @@ from collections.abc import Sequence
 import numpy as np
 
 from generators.layout import Layout
-from generators.render import (
+from generators.render.base import (
     ZNEAR_M,
     Culler,
     LightSelector,
     Renderer,
-    _box_corners,
+    box_corners,
     fovy_from_K,
     part_surface,
     scene_extent,
@@ -141,7 +142,7 @@ class PyrenderRenderer(Renderer):
                 self._seg[node] = _id_colour(inst.id)
                 self._nodes.setdefault(inst.id, []).append(len(node_list))
                 node_list.append(node)
-                local_corners.append(_box_corners(*part.mesh.bounds))
+                local_corners.append(box_corners(*part.mesh.bounds))
                 node_instance.append(inst.id)
         self._node_list, self._local_corners = node_list, np.array(local_corners)
         self._corners = np.stack([self._world_corners(k) for k in range(len(node_list))])
@@ -209,7 +210,7 @@ class PyrenderRenderer(Renderer):
             node.mesh.is_visible = not hide
 
     def _select_lights(self, cam: np.ndarray) -> None:
-        """The MuJoCo backend's lights (:class:`render.LightSelector`), scaled and tinted."""
+        """The MuJoCo backend's lights (:class:`~generators.render.base.LightSelector`), scaled and tinted."""
         for light, on in zip(self._lights, self._selector.active(cam, self._off)):
             light.intensity = LIGHT_INTENSITY * self._level if on else 0.0
             light.color = self._tint

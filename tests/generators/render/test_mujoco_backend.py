@@ -1,13 +1,14 @@
-"""MuJoCo renderer: exact metric depth, instance ids, OpenCV pose convention, lighting, moving instances."""
+"""MuJoCo backend: exact metric depth, instance ids, OpenCV pose convention, lighting, moving instances."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from generators import render
-from generators.layout import Instance, Layout, Light, Room, _part, box_mesh
-from generators.render import MAX_MATERIALS, create_renderer, fovy_from_K
+from generators.layout import Instance, Layout, Light, Room
+from generators.layout.model import box_mesh, make_part
+from generators.render import create_renderer, mujoco_backend
+from generators.render.mujoco_backend import MAX_MATERIALS, build_mjcf
 from openreloc_bench import geometry
 from openreloc_bench.errors import ConfigError
 
@@ -18,7 +19,7 @@ def _box(iid: int, lo, hi, colour: str, category: str, structural: bool) -> Inst
     return Instance(
         id=iid,
         category=category,
-        parts=[_part([box_mesh(lo, hi)], "plaster", colour, iid)],
+        parts=[make_part([box_mesh(lo, hi)], "plaster", colour, iid)],
         transform=np.eye(4),
         structural=structural,
         room="r",
@@ -119,8 +120,6 @@ def test_lighting_and_displacement(box_room) -> None:
 
 def test_bad_inputs(box_room) -> None:
     with pytest.raises(ValueError):
-        fovy_from_K(geometry.intrinsics(100, 100, 10, 10), W, H)
-    with pytest.raises(ValueError):
         box_room.render(POSES[0], K, 2 * W, 2 * H)
     with pytest.raises(geometry.GeometryError):
         box_room.render(np.eye(4) * 2, K, W, H)
@@ -188,27 +187,12 @@ def test_scene_at_and_beyond_mujocos_material_limit_renders(parts: int) -> None:
 def test_texture_seeds_fold_only_beyond_the_limit(monkeypatch, limit: int, expected: int) -> None:
     """Within the limit every part keeps its own texture (scenes render as before); beyond it, the most
     seed variants per (material, colour) that fit."""
-    monkeypatch.setattr(render, "MAX_MATERIALS", limit)
-    xml = render.build_mjcf(_many_boxes(12, ("red", "blue")), W, H)[0]
+    monkeypatch.setattr(mujoco_backend, "MAX_MATERIALS", limit)
+    xml = build_mjcf(_many_boxes(12, ("red", "blue")), W, H)[0]
     assert xml.count("<material ") == expected
 
 
 def test_more_colours_than_materials_is_a_clear_error(monkeypatch) -> None:
-    monkeypatch.setattr(render, "MAX_MATERIALS", 2)
+    monkeypatch.setattr(mujoco_backend, "MAX_MATERIALS", 2)
     with pytest.raises(ConfigError, match="distinct"):
-        render.build_mjcf(_many_boxes(12, ("red", "blue")), W, H)
-
-
-def test_texture_mapping_covers_a_part_once_with_its_own_placement() -> None:
-    wall = _part([box_mesh((0, 0, 0), (5.0, 0.1, 2.7))], "plaster", "white", seed=11)
-    v, _, uv, _, image = render.part_surface(wall)
-    mapping = render.TextureMapping.of(wall)
-    assert mapping == render.TextureMapping.of(_part([box_mesh((0, 0, 0), (5.0, 0.1, 2.7))], "plaster", "white", 11))
-    assert image.shape[:2] == (mapping.size, mapping.size) and mapping.metres * mapping.scale >= np.hypot(5.0, 2.7)
-    assert np.all(uv.max(axis=0) - uv.min(axis=0) <= 1.0 + 1e-9)  # the wall never shows its texture twice
-    other = render.TextureMapping.of(_part([box_mesh((0, 0, 0), (5.0, 0.1, 2.7))], "plaster", "white", 12))
-    assert (other.rotation, other.offset) != (mapping.rotation, mapping.offset)  # surfaces do not line up
-    cup = render.TextureMapping.of(_part([box_mesh((0, 0, 0), (0.08, 0.08, 0.1))], "ceramic", "white", 3))
-    assert cup.metres == render.DETAIL_M and cup.size == 64
-    lo, hi = render.TEXTURE_SCALE
-    assert lo <= mapping.scale <= hi and lo <= cup.scale <= hi
+        build_mjcf(_many_boxes(12, ("red", "blue")), W, H)

@@ -48,6 +48,7 @@ from openreloc_bench.openreloc.association import (
     uniqueness,
 )
 from openreloc_bench.openreloc.build import MappingConfig, build_object_map
+from openreloc_bench.openreloc.coarse_prior import CoarseConfig, place_landmarks, pnp_prior, rank_reference_frames
 from openreloc_bench.openreloc.consistency import (
     ConsistencyConfig,
     LabelRenderer,
@@ -67,7 +68,6 @@ from openreloc_bench.openreloc.refine import (
     refine_poses,
     target_tables,
 )
-from openreloc_bench.openreloc.retrieval import CoarseConfig, place_landmarks, pnp_prior, retrieve_reference
 from openreloc_bench.openreloc.verify import ObjectEvidence, VerifyConfig, extreme_points, verify_matches
 from openreloc_bench.vision.base import (
     ImageTextEncoder,
@@ -591,7 +591,7 @@ class OpenReLoc:
         cfg, m = self.config, self.map
         assert m is not None
         boxes = {mt.landmark: objects[mt.query].box.astype(np.float64) for mt in matches}
-        ret = retrieve_reference(boxes, m.reference_frames, cfg.retrieval)
+        ret = rank_reference_frames(boxes, m.reference_frames, cfg.retrieval)
         if ret is None:
             return []
         diag["reference_frame"] = {

@@ -58,12 +58,12 @@ from openreloc_bench.openreloc.consistency import (
 )
 from openreloc_bench.openreloc.descriptors import pad_box
 from openreloc_bench.openreloc.explain import PlacedObject, explain_pose
+from openreloc_bench.openreloc.icp_batch import TargetTables
 from openreloc_bench.openreloc.map import ObjectMap
 from openreloc_bench.openreloc.refine import (
     RefineConfig,
     RefineResult,
     RefineTarget,
-    TargetTables,
     orbit_starts,
     refine_poses,
     target_tables,

@@ -37,7 +37,6 @@ from typing import Literal
 
 import cv2
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from openreloc_bench import geometry
 from openreloc_bench.config import check_ranges
@@ -111,7 +110,7 @@ class RefineConfig:
     """Steps of the Huber-threshold decay (used only with ``huber_delta_start``)."""
     restart_degrees: float = 6.0
     """Beyond the paper (basin hopping): the chosen refined pose is refined again from four starts orbiting
-    its matched landmarks' centre by +-this many degrees (:func:`orbit_starts`), and the lowest loss
+    its matched landmarks' centre by +-this many degrees (:func:`.hypotheses.orbit_starts`), and the lowest loss
     wins. Nearest-pixel correspondences make the loss landscape a chain of shallow basins: a sideways
     shift plus a turn that keeps the objects in view barely changes it. Many queries that end 0.5-1 m
     off have right matches that, refined from the *truth*, converge near it at a lower loss than the
@@ -373,18 +372,6 @@ def _check_target_sets(target_sets: list[list[int]], targets: list[RefineTarget]
             raise ValueError(f"target set {b} must hold indices of the {len(targets)} targets, at least one: {ts}")
         if len({targets[i].landmark_id for i in ts}) != len(ts):
             raise ValueError(f"target set {b} aligns a landmark twice: {[targets[i].landmark_id for i in ts]}")
-
-
-def orbit_starts(T_wc: np.ndarray, pivot: np.ndarray, degrees: float) -> list[np.ndarray]:
-    """Four camera-to-world poses: ``T_wc`` orbited about ``pivot`` (world point) by -``degrees`` and
-    +``degrees`` around the world's vertical axis, then around the camera's x axis. The pivot stays
-    where it was in the image, so each start keeps the matched objects in view."""
-    out = []
-    for axis in (np.array([0.0, 0.0, 1.0]), T_wc[:3, 0]):
-        for sign in (-1.0, 1.0):
-            R = Rotation.from_rotvec(np.radians(sign * degrees) * axis).as_matrix()
-            out.append(geometry.make_pose(R @ T_wc[:3, :3], pivot + R @ (T_wc[:3, 3] - pivot)))
-    return out
 
 
 def refine_pose(

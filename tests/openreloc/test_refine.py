@@ -13,7 +13,6 @@ from openreloc_bench.openreloc.refine import (
     RefineTarget,
     backward_pixels,
     nearest_mask_pixels,
-    orbit_starts,
     refine_pose,
     refine_poses,
 )
@@ -206,21 +205,3 @@ def test_refinement_stops_once_the_best_hypothesis_has_settled() -> None:
 def test_huber_annealing_still_converges(delta_start: float) -> None:
     res = refine_pose(perturbed(1, 0.03, 0.15), K, targets_at(T_GT), RefineConfig(huber_delta_start=delta_start))
     assert res.reason is None and geometry.translation_error(T_GT, res.T_wc) < 0.1
-
-
-@pytest.mark.parametrize("degrees", [3.0, 6.0])
-def test_orbit_starts_keep_the_pivot_in_place_and_turn_by_the_angle(degrees: float) -> None:
-    pivot = np.array([0.2, 0.8, 0.6])
-    uv0, _ = geometry.project(K, T_GT, pivot[None])
-    starts = orbit_starts(T_GT, pivot, degrees)
-    assert len(starts) == 4
-    for T in starts:
-        assert geometry.is_rigid(T)
-        uv, _ = geometry.project(K, T, pivot[None])
-        np.testing.assert_allclose(uv, uv0, atol=1e-6)
-        assert np.linalg.norm(T[:3, 3] - pivot) == pytest.approx(np.linalg.norm(T_GT[:3, 3] - pivot))
-        assert float(geometry.rotation_error(T_GT, T)) == pytest.approx(degrees, abs=1e-6)
-    # two about the world's vertical (the camera height stays), two about the camera's x axis (it does not)
-    heights = [T[2, 3] - T_GT[2, 3] for T in starts]
-    assert heights[0] == pytest.approx(0.0, abs=1e-9) and heights[1] == pytest.approx(0.0, abs=1e-9)
-    assert min(abs(heights[2]), abs(heights[3])) > 1e-3 and heights[2] * heights[3] < 0  # up, then down

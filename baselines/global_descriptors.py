@@ -30,7 +30,7 @@ from torch import nn
 from torch.nn import functional as F
 
 from baselines.features import SiftConfig, extract_sift, root_sift
-from baselines.retrieval import Vlad, VladConfig
+from baselines.frame_retrieval import Vlad, VladConfig
 from openreloc_bench import config as cfglib
 from openreloc_bench.vision.base import l2_normalize
 from openreloc_bench.vision.learned_segment import torch_threads

@@ -22,8 +22,8 @@ from typing import Any
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from baselines.frame_retrieval import Vlad, top_k
 from baselines.global_descriptors import GlobalDescriptor, GlobalDescriptorConfig, encoder_fingerprint, single_threaded
-from baselines.retrieval import Vlad, top_k
 from openreloc_bench import config as cfglib
 from openreloc_bench.bars import tqdm
 from openreloc_bench.data import mapfile

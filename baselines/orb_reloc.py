@@ -2,7 +2,7 @@
 
 Map: every mapping frame is a keyframe holding ORB features (ORB-SLAM2's extractor: 1000 x 8
 levels, scale 1.2, FAST 20 with fallback 7) whose depth gives their map points; a per-scene DBoW2
-vocabulary (:class:`~baselines.retrieval.VocabularyTree`) stands in for ORBvoc; co-visibility
+vocabulary (:class:`~baselines.frame_retrieval.VocabularyTree`) stands in for ORBvoc; co-visibility
 between keyframes counts the points of one that the other sees (projected into it and confirmed
 by its depth), since these keyframes come with poses and depth rather than from tracking.
 
@@ -41,7 +41,7 @@ from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 from baselines.features import FeatureMap, Keypoints, OrbConfig, build_feature_map, extract_orb
-from baselines.retrieval import VocabularyConfig, VocabularyTree, hamming_matrix
+from baselines.frame_retrieval import VocabularyConfig, VocabularyTree, hamming_matrix
 from openreloc_bench import config as cfglib
 from openreloc_bench import geometry
 from openreloc_bench.bars import tqdm

@@ -22,7 +22,7 @@ import numpy as np
 
 from baselines.absolute_pose import AbsolutePoseConfig, estimate_absolute_pose
 from baselines.features import FeatureMap, SiftConfig, build_feature_map, extract_sift, root_sift
-from baselines.retrieval import Vlad, VladConfig, top_k
+from baselines.frame_retrieval import Vlad, VladConfig, top_k
 from openreloc_bench import config as cfglib
 from openreloc_bench.data.types import SceneSequence
 from openreloc_bench.methods import Failure, PoseEstimate, QueryFrame

@@ -2,7 +2,7 @@
 
 GOReloc maps with ORB-SLAM2 + OA-SLAM: ellipsoids reconstructed from detections, a label histogram
 per object, and a graph per keyframe. With RGB-D frames and known poses, the same map is built from
-the project's reconstruction (:mod:`openreloc_bench.openreloc.mapping`):
+the project's reconstruction (:mod:`openreloc_bench.reconstruction`):
 
 1. TSDF fusion of the frames into a scene point cloud, and a depth-tested projection of the cloud into
    every frame, during which each frame's masks (dataset instance masks, or the segmenter's) are
@@ -34,7 +34,9 @@ from openreloc_bench.bars import tqdm
 from openreloc_bench.data.scene import Scene
 from openreloc_bench.data.types import SceneSequence
 from openreloc_bench.errors import ConfigError, DataError
-from openreloc_bench.openreloc import mapping
+from openreloc_bench.reconstruction.fusion import FusionConfig, fuse_tsdf
+from openreloc_bench.reconstruction.lifting import InstanceConfig, instance_sets, lift_by_clustering, lift_by_voting
+from openreloc_bench.reconstruction.observation import FrameObservation, ObservationConfig, observe
 from openreloc_bench.vision.base import ObjectMask, Segmenter, create_segmenter
 
 
@@ -61,11 +63,11 @@ class MappingConfig:
     """Ellipsoid extents span the trim and 1 - trim quantiles of the object's points per axis."""
     ellipsoid_scale: float = 1.0
     """Semi-axes are this times the half-extents (1 = the ellipsoid inscribed in the object's box)."""
-    fusion: mapping.FusionConfig = field(default_factory=mapping.FusionConfig)
+    fusion: FusionConfig = field(default_factory=FusionConfig)
     """TSDF fusion of the mapping frames."""
-    observation: mapping.ObservationConfig = field(default_factory=mapping.ObservationConfig)
+    observation: ObservationConfig = field(default_factory=ObservationConfig)
     """When a scene point counts as seen by a frame."""
-    instances: mapping.InstanceConfig = field(default_factory=mapping.InstanceConfig)
+    instances: InstanceConfig = field(default_factory=InstanceConfig)
     """Lifting masks to 3D objects (voting for instance masks, clustering for segmenter masks)."""
 
     def __post_init__(self) -> None:
@@ -99,7 +101,7 @@ def dataset_categories(seq: SceneSequence) -> dict[int, str]:
 
 
 class _DetectingSegmenter(Segmenter):
-    """Hands a segmenter's masks to :func:`mapping.observe` unchanged and keeps each frame's filtered
+    """Hands a segmenter's masks to :func:`observe` unchanged and keeps each frame's filtered
     detections (observe calls it once per frame, in the order of its observations)."""
 
     def __init__(self, inner: Segmenter, labeller: Labeller, cfg: DetectionFilterConfig):
@@ -137,13 +139,13 @@ def build_goreloc_map(
     elif segmenter is None or labeller is None:
         raise ConfigError("goreloc mapping from a segmenter needs the segmenter and the zero-shot labeller")
     detecting = _DetectingSegmenter(segmenter, labeller, cfg.detection)
-    rec = mapping.fuse_tsdf(seq, cfg.fusion, progress)
-    obs = mapping.observe(seq, rec.points, rec.usable, cfg.observation, detecting, progress)
+    rec = fuse_tsdf(seq, cfg.fusion, progress)
+    obs = observe(seq, rec.points, rec.usable, cfg.observation, detecting, progress)
     if source == "masks":
-        point_ids = mapping.lift_by_voting(len(rec.points), obs, cfg.instances.voting)
+        point_ids = lift_by_voting(len(rec.points), obs, cfg.instances.voting)
     else:
-        point_ids = mapping.lift_by_clustering(rec.points, obs, cfg.instances.clustering)
-    sets = mapping.instance_sets(point_ids, cfg.instances.min_points)
+        point_ids = lift_by_clustering(rec.points, obs, cfg.instances.clustering)
+    sets = instance_sets(point_ids, cfg.instances.min_points)
 
     counts: dict[int, np.ndarray] = {}
     linked: set[tuple[int, int]] = set()
@@ -199,7 +201,7 @@ def build_goreloc_map(
     )
 
 
-def _owner(o: mapping.FrameObservation, d: Detection, point_ids: np.ndarray, min_share: float) -> int | None:
+def _owner(o: FrameObservation, d: Detection, point_ids: np.ndarray, min_share: float) -> int | None:
     """The object most of a detection's seen mask points were lifted to, if it holds ``min_share``."""
     seen = point_ids[o.point_idx[o.masks[d.mask_index]]]
     if len(seen) == 0:

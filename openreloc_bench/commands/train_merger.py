@@ -4,7 +4,7 @@ Generates scenes from the seeds reserved for training (never a benchmark or vali
 builds each one's instances from the segmenter's masks as mapping does (fusion, observation,
 grouping, fill when on; ``--config`` and ``--set`` take openreloc's settings), labels every pair of
 touching instances from the scene's object boxes, and fits the logistic regression of
-``openreloc/instance_repair.py``. ``--eval-scenes`` more, from a disjoint part of the range, give the
+``reconstruction/instance_repair.py``. ``--eval-scenes`` more, from a disjoint part of the range, give the
 card's held-out pair accuracy. The merge threshold is a
 mapping setting, chosen on the validation suite with ``openreloc-bench diagnose``. Writes a directory
 to use as ``--set mapping.instances.repair.merger=DIR``.
@@ -55,9 +55,9 @@ def run(args: argparse.Namespace) -> int:
     from openreloc_bench import config as cfgmod
     from openreloc_bench.data import io, paths
     from openreloc_bench.harness.suites import scene_dirs, training_scenes
-    from openreloc_bench.openreloc.instance_repair import FEATURES, fit_merger
     from openreloc_bench.openreloc.merger_training import collect_examples, pair_accuracy
     from openreloc_bench.openreloc.method import OpenReLocConfig
+    from openreloc_bench.reconstruction.instance_repair import FEATURES, fit_merger
     from openreloc_bench.vision import create_segmenter
 
     for flag, value in (("--scenes", args.scenes), ("--eval-scenes", args.eval_scenes)):

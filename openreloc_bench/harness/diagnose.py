@@ -31,8 +31,8 @@ from openreloc_bench.data.types import SceneSequence
 from openreloc_bench.harness.cache import build_map_cached, config_hash
 from openreloc_bench.harness.metrics import summarize
 from openreloc_bench.methods import DEFAULT_TRACK, Failure, PoseEstimate, QueryFrame, create_method
+from openreloc_bench.openreloc.instance_eval import box_point_labels, boxed_objects
 from openreloc_bench.openreloc.map import ObjectMap
-from openreloc_bench.openreloc.mapping import box_point_labels, boxed_objects
 from openreloc_bench.vision import create_segmenter
 from openreloc_bench.vision.base import ObjectMask, Segmenter, label_image
 from openreloc_bench.vision.segmenter_training import frame_metrics

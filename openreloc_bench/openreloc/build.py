@@ -28,15 +28,17 @@ from openreloc_bench.config import check_ranges
 from openreloc_bench.data.scene import Scene
 from openreloc_bench.data.types import SceneSequence
 from openreloc_bench.errors import ConfigError
-from openreloc_bench.openreloc import mapping
-from openreloc_bench.openreloc.affinity_grouping import lift_by_affinity
 from openreloc_bench.openreloc.descriptors import DescriptorConfig, compute_descriptors
 from openreloc_bench.openreloc.filtering import FilterConfig, invalid_landmarks
-from openreloc_bench.openreloc.instance_eval import instance_report
-from openreloc_bench.openreloc.instance_repair import repair_instances
+from openreloc_bench.openreloc.instance_eval import box_point_labels, boxed_objects, instance_report
 from openreloc_bench.openreloc.map import Landmark, ObjectMap
 from openreloc_bench.openreloc.reference_frames import ReferenceFrameConfig, landmark_sightings, select_reference_frames
 from openreloc_bench.openreloc.scene_graph import GraphConfig, build_scene_graph
+from openreloc_bench.reconstruction.affinity_grouping import lift_by_affinity
+from openreloc_bench.reconstruction.fusion import FusionConfig, Reconstruction, fuse_tsdf
+from openreloc_bench.reconstruction.instance_repair import repair_instances
+from openreloc_bench.reconstruction.lifting import InstanceConfig, instance_sets, lift_by_clustering, lift_by_voting
+from openreloc_bench.reconstruction.observation import FrameObservation, ObservationConfig, observe
 from openreloc_bench.vision.base import ImageTextEncoder, Segmenter
 
 log = logging.getLogger(__name__)
@@ -56,9 +58,9 @@ class MappingConfig:
     """...and capped at this many (seeded random subset), which bounds the map size per landmark."""
     seed: int = 0
     """Seed of the point subsampling."""
-    fusion: mapping.FusionConfig = field(default_factory=mapping.FusionConfig)
-    observation: mapping.ObservationConfig = field(default_factory=mapping.ObservationConfig)
-    instances: mapping.InstanceConfig = field(default_factory=mapping.InstanceConfig)
+    fusion: FusionConfig = field(default_factory=FusionConfig)
+    observation: ObservationConfig = field(default_factory=ObservationConfig)
+    instances: InstanceConfig = field(default_factory=InstanceConfig)
     reference_frames: ReferenceFrameConfig = field(default_factory=ReferenceFrameConfig)
     descriptors: DescriptorConfig = field(default_factory=DescriptorConfig)
     filtering: FilterConfig = field(default_factory=FilterConfig)
@@ -102,7 +104,7 @@ def build_object_map(
         )
         quality = None
         if gt_labels is not None:
-            truth = mapping.instance_sets(gt_labels, config.instances.min_points)
+            truth = instance_sets(gt_labels, config.instances.min_points)
             quality = {**instance_report(rec.points, sets, truth), "reference": reference}
     with timer("reference_frames"):
         sightings = landmark_sightings(obs, labels, config.reference_frames)
@@ -167,8 +169,8 @@ def build_object_map(
 class Instances:
     """The scene cloud, what every frame sees of it, and its 3D instances."""
 
-    reconstruction: mapping.Reconstruction
-    observations: list[mapping.FrameObservation]
+    reconstruction: Reconstruction
+    observations: list[FrameObservation]
     labels: np.ndarray
     """(N,) instance id per scene point (0 = none); instances below ``min_points`` already removed."""
     sets: dict[int, np.ndarray]
@@ -189,13 +191,13 @@ def lift_instances(
     ``boundaries``."""
     timer = timer or _Timer()
     with timer("fusion"):
-        rec = mapping.fuse_tsdf(mapping_seq, config.fusion, progress)
+        rec = fuse_tsdf(mapping_seq, config.fusion, progress)
     with timer("observation"):
         keep = boundaries or config.instances.repair.merge
-        obs = mapping.observe(mapping_seq, rec.points, rec.usable, config.observation, segmenter, progress, keep)
+        obs = observe(mapping_seq, rec.points, rec.usable, config.observation, segmenter, progress, keep)
     with timer("instances"):
         if segmenter is None:
-            labels = mapping.lift_by_voting(len(rec.points), obs, config.instances.voting)
+            labels = lift_by_voting(len(rec.points), obs, config.instances.voting)
         else:
             labels = repair_instances(
                 rec.points,
@@ -205,7 +207,7 @@ def lift_instances(
                 config.instances.repair,
                 config.instances.min_mask_points,
             )
-        sets = mapping.instance_sets(labels, config.instances.min_points)
+        sets = instance_sets(labels, config.instances.min_points)
         labels = np.where(np.isin(labels, list(sets)), labels, 0)
     return Instances(rec, obs, labels, sets)
 
@@ -215,7 +217,7 @@ def group_masks(points: np.ndarray, obs: list, config: MappingConfig) -> np.ndar
     cfg = config.instances
     if cfg.grouping == "affinity":
         return lift_by_affinity(points, obs, cfg.affinity, config.fusion.voxel_size)
-    return mapping.lift_by_clustering(points, obs, cfg.clustering)
+    return lift_by_clustering(points, obs, cfg.clustering)
 
 
 def _downsample(points: np.ndarray, voxel: float, cap: int, rng: np.random.Generator) -> np.ndarray:
@@ -238,12 +240,12 @@ def _reference_labels(
 ) -> tuple[np.ndarray | None, str | None]:
     """Ground-truth point labels for scoring instances: object boxes if the scene has them, else the
     vote of the dataset masks (reusing the oracle labels when they were just computed)."""
-    objects = mapping.boxed_objects(_objects(seq))
+    objects = boxed_objects(_objects(seq))
     if objects:
-        return mapping.box_point_labels(points, objects, config.instances.gt_box_margin), "object boxes"
+        return box_point_labels(points, objects, config.instances.gt_box_margin), "object boxes"
     if all(o.gt_ids is not None for o in obs):
         return (
-            voted if voted is not None else mapping.lift_by_voting(len(points), obs, config.instances.voting)
+            voted if voted is not None else lift_by_voting(len(points), obs, config.instances.voting)
         ), "mask voting"
     return None, None
 

@@ -15,8 +15,8 @@ import numpy as np
 from openreloc_bench.bars import tqdm
 from openreloc_bench.config import check_ranges
 from openreloc_bench.data.types import SceneSequence
-from openreloc_bench.openreloc.mapping import read_color
 from openreloc_bench.openreloc.reference_frames import Sightings
+from openreloc_bench.reconstruction.frames import read_color
 from openreloc_bench.vision.base import ImageTextEncoder, l2_normalize
 
 

@@ -3,9 +3,10 @@
 A refinement step evaluates a few thousand projected points against their masks; as ~80 small tensor
 operations the step cost mostly the operations' overhead and their temporaries, so the loss is written
 as loops and compiled with numba (:func:`dual_path`). It returns each object's loss and the object's
-gradient with respect to the hypothesis' rotation matrix and translation; :mod:`.refine` weights and sums
-them (the outlier weights depend on the losses) and takes the quaternion's share. The arithmetic is
-float32, as the refinement's state is, with the sums over points in float64.
+gradient with respect to the hypothesis' rotation matrix and translation; :mod:`.icp_batch` sums them
+with the weights :mod:`.refine` gives the objects (they depend on the losses: outliers) and takes the
+quaternion's share. The arithmetic is float32, as the refinement's state is, with the sums over points
+in float64.
 """
 
 from __future__ import annotations

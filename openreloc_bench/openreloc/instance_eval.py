@@ -1,6 +1,6 @@
 """What is wrong with a 3D instance map: precision / recall and each object's error, by object size.
 
-Every true object (points of its box, :func:`mapping.box_point_labels`) is, against the predicted
+Every true object (points of its box, :func:`box_point_labels`) is, against the predicted
 instances:
 - ``found``: one instance has IoU >= 0.5 with it;
 - ``split``: instances lying mostly (>= half their points) inside it cover at least half of it, but
@@ -19,7 +19,8 @@ from typing import Any
 
 import numpy as np
 
-from openreloc_bench.openreloc.incidence import sets_matrix
+from openreloc_bench.data.scene import ObjectInfo
+from openreloc_bench.reconstruction.incidence import sets_matrix
 
 SIZE_BINS_M = (0.5, 1.5)
 SIZES = ("small", "medium", "large")
@@ -73,3 +74,40 @@ def _object_error(iou: np.ndarray, inter: np.ndarray, p_size: np.ndarray, g_size
     if inter.max() >= 0.5 * g_size:
         return "merged"
     return "missed"
+
+
+def boxed_objects(objects: dict[int, ObjectInfo]) -> dict[int, ObjectInfo]:
+    """The objects with a box (``objects.json`` of generated scenes; converted real data has none)."""
+    return {i: o for i, o in objects.items() if np.any(np.asarray(o.aabb[1]) > np.asarray(o.aabb[0]))}
+
+
+def box_point_labels(points: np.ndarray, objects: dict[int, ObjectInfo], margin: float) -> np.ndarray:
+    """(N,) ground-truth instance id per point from the objects' world boxes (0 = in no box).
+
+    Independent of the instance masks, so both the oracle and the predicted tracks can be scored
+    against it. A point strictly inside one or more boxes takes the smallest of them (a lamp on a
+    table, a painting on a wall); a point only within ``margin`` of boxes (surface noise, thin walls
+    and floors) takes the smallest of those. Loose boxes of rotated objects make it slightly coarse.
+    """
+    ids = np.array(sorted(objects))
+    labels = np.zeros(len(points), np.int64)
+    if len(ids) == 0 or len(points) == 0:
+        return labels
+    lo = np.array([objects[i].aabb[0] for i in ids], np.float64)
+    hi = np.array([objects[i].aabb[1] for i in ids], np.float64)
+    volume = np.prod(hi - lo + 2 * margin, axis=1)
+    order = np.argsort(points[:, 0], kind="stable")  # each box tests only its slab of x
+    xs = points[order, 0]
+    best_strict = np.full(len(points), np.inf)
+    best_loose = np.full(len(points), np.inf)
+    lab_strict = np.zeros(len(points), np.int64)
+    lab_loose = np.zeros(len(points), np.int64)
+    for k in np.argsort(-volume):  # small boxes last, so they win ties of containment
+        cand = order[np.searchsorted(xs, lo[k, 0] - margin) : np.searchsorted(xs, hi[k, 0] + margin, side="right")]
+        p = points[cand]
+        for m, best, lab in ((0.0, best_strict, lab_strict), (margin, best_loose, lab_loose)):
+            idx = cand[np.all((p >= lo[k] - m) & (p <= hi[k] + m), axis=1)]
+            idx = idx[volume[k] <= best[idx]]
+            best[idx] = volume[k]
+            lab[idx] = ids[k]
+    return np.where(lab_strict > 0, lab_strict, lab_loose)

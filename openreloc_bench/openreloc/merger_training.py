@@ -1,7 +1,7 @@
 """Training the instance merge classifier (:mod:`instance_repair`) on generated training scenes.
 
 On a training scene the truth of every pair of touching instances is free: the scene's object boxes
-label the scene points (:func:`mapping.box_point_labels`), each grouped instance takes the object
+label the scene points (:func:`.instance_eval.box_point_labels`), each grouped instance takes the object
 most of its points lie in, and a pair is one object when both take the same one. Pairs with an
 instance mostly outside any one object (under half its points) teach nothing clean and are left out.
 """
@@ -18,10 +18,10 @@ from scipy.spatial import cKDTree
 from openreloc_bench.bars import tqdm
 from openreloc_bench.data.scene import Scene
 from openreloc_bench.errors import DataError
-from openreloc_bench.openreloc import instance_repair as repair
-from openreloc_bench.openreloc import mapping
 from openreloc_bench.openreloc.build import MappingConfig, lift_instances
-from openreloc_bench.openreloc.incidence import view_evidence
+from openreloc_bench.openreloc.instance_eval import box_point_labels, boxed_objects
+from openreloc_bench.reconstruction import instance_repair as repair
+from openreloc_bench.reconstruction.incidence import view_evidence
 from openreloc_bench.vision.base import Segmenter
 
 
@@ -59,7 +59,7 @@ def scene_examples(scene_dir: Path, segmenter: Segmenter, config: MappingConfig)
     fill when it is on), with their truth from the scene's object boxes."""
     scene = Scene(scene_dir)
     seq = scene.sequence("mapping")
-    objects = mapping.boxed_objects(scene.objects)
+    objects = boxed_objects(scene.objects)
     if not objects:
         raise DataError(scene_dir / "objects.json", "no object boxes: merge training needs generated scenes")
     # the instances as grouped, without repair: fill is applied below, as the merge step sees it
@@ -73,7 +73,7 @@ def scene_examples(scene_dir: Path, segmenter: Segmenter, config: MappingConfig)
     attrs = repair.point_attributes(points, obs, seq.poses[:, :3, 3])
     neighbours = cKDTree(points).query_pairs(rc.contact_radius, output_type="ndarray")
     pairs = repair.border_features(points, labels, attrs, views, neighbours, rc)
-    truth = mapping.box_point_labels(points, objects, config.instances.gt_box_margin)
+    truth = box_point_labels(points, objects, config.instances.gt_box_margin)
     owner = dominant_objects(labels, truth)
     first = [owner[int(a)] for a in pairs.first]
     second = [owner[int(b)] for b in pairs.second]

@@ -3,7 +3,8 @@
 Three stages go beyond the paper, each with a switch: geometric verification of the association
 (:mod:`.verify`, ``verification.enabled``), the render-and-compare choice among refined hypotheses
 (:mod:`.consistency`, ``consistency.enabled``), and restarts of the chosen refinement from orbiting
-starts (basin hopping, ``refinement.restart_degrees``).
+starts (basin hopping, ``refinement.restart_degrees``). :mod:`.hypotheses` builds, refines and chooses
+among the pose hypotheses; this module runs the stages in order (:meth:`OpenReLoc._localize`).
 
 ``openreloc-paper`` (:mod:`.paper`) is this class with these three, and every other addition, switched off.
 
@@ -24,7 +25,7 @@ import functools
 import math
 import time
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from contextlib import AbstractContextManager, contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
@@ -33,7 +34,6 @@ import numpy as np
 from threadpoolctl import ThreadpoolController
 
 from openreloc_bench import config as cfglib
-from openreloc_bench import geometry
 from openreloc_bench.config import check_ranges
 from openreloc_bench.data.types import SceneSequence
 from openreloc_bench.errors import DataError
@@ -48,6 +48,7 @@ from openreloc_bench.openreloc.association import (
     uniqueness,
 )
 from openreloc_bench.openreloc.build import MappingConfig, build_object_map
+from openreloc_bench.openreloc.coarse_prior import CoarseConfig, place_landmarks
 from openreloc_bench.openreloc.consistency import (
     ConsistencyConfig,
     LabelRenderer,
@@ -57,17 +58,20 @@ from openreloc_bench.openreloc.consistency import (
 )
 from openreloc_bench.openreloc.descriptors import pad_box
 from openreloc_bench.openreloc.explain import PlacedObject, explain_pose
-from openreloc_bench.openreloc.map import ObjectMap
-from openreloc_bench.openreloc.refine import (
-    RefineConfig,
-    RefineResult,
-    RefineTarget,
-    TargetTables,
-    orbit_starts,
-    refine_poses,
-    target_tables,
+from openreloc_bench.openreloc.hypotheses import (
+    Compare,
+    Hypothesis,
+    RefinedBatch,
+    batch_diag,
+    choose_hypothesis,
+    coarse_hypotheses,
+    refine_hypotheses,
+    restart,
+    rounded,
+    screen_modes,
 )
-from openreloc_bench.openreloc.retrieval import CoarseConfig, place_landmarks, pnp_prior, retrieve_reference
+from openreloc_bench.openreloc.map import ObjectMap
+from openreloc_bench.openreloc.refine import RefineConfig
 from openreloc_bench.openreloc.verify import ObjectEvidence, VerifyConfig, extreme_points, verify_matches
 from openreloc_bench.vision.base import (
     ImageTextEncoder,
@@ -78,7 +82,6 @@ from openreloc_bench.vision.base import (
     encoder_fingerprint,
     segmenter_fingerprint,
 )
-from openreloc_bench.vision.preprocess import touches_border
 
 STAGES = ("segment", "encode", "describe", "associate", "verify", "retrieve", "refine", "compare")
 
@@ -251,188 +254,165 @@ class OpenReLoc:
         return result
 
     def _localize(self, query: QueryFrame, diag: dict[str, Any], timings: dict[str, float]) -> PoseEstimate | Failure:
+        """The pipeline: segment, associate, verify, retrieve (the coarse stage's hypotheses), refine,
+        compare (render-and-compare), then the choice among the refined hypotheses."""
         cfg, m = self.config, self.map
         assert m is not None
         stage = _stage_timer(timings)
-        rgb = np.asarray(query.color)
-        if rgb.ndim != 3 or rgb.shape[:2] != (m.height, m.width):
-            return Failure(
-                f"query image is {rgb.shape[1::-1] if rgb.ndim >= 2 else rgb.shape}, the map's camera is "
-                f"{m.width}x{m.height}",
-                diag,
-            )
-        K = np.asarray(query.K, dtype=np.float64)
-        if K.shape != (3, 3) or not (0 <= K[0, 2] <= m.width and 0 <= K[1, 2] <= m.height) or K[0, 0] <= 0:
-            return Failure("query intrinsics do not fit the image size (principal point outside the image)", diag)
+        rgb, K = np.asarray(query.color), np.asarray(query.K, dtype=np.float64)
+        if (unfit := self._unfit(rgb, K)) is not None:
+            return Failure(unfit, diag)
 
         with stage("segment"):
-            if query.instance is not None:
-                masks = self.gt_segmenter.segment(rgb, query.instance)
-            else:
-                masks = self.segmenter.segment(rgb)
-            occluders = np.zeros((m.height, m.width), bool)
-            for mk in masks:
-                occluders |= mk.mask
-            masks = [mk for mk in masks if int(mk.mask.sum()) >= self.min_mask_area]
+            masks, occluders = self._segment(rgb, query.instance)
         diag["detected"] = len(masks)
         if len(masks) < cfg.min_objects:
             return Failure(f"{len(masks)} object(s) detected, need at least {cfg.min_objects}", diag)
 
         invalid = frozenset() if cfg.no_filtering else frozenset(set(self.ids) - set(m.valid_ids()))
-        verified: np.ndarray | None = None  # the verification stage's pose, when it finds one
-        alternatives: list[tuple[str, list[Match], np.ndarray]] = []  # its further modes: (source, own matches, pose)
-        appearance: np.ndarray | None = None  # (masks, landmarks) visual similarity; none for the oracle
+        associated = self._associate(rgb, masks, query.instance is not None, invalid, diag, stage)
+        if isinstance(associated, Failure):
+            return associated
+        objects, matches, appearance = associated
+
+        verified: np.ndarray | None = None  # the verification's pose, when it finds one
+        modes: list[Hypothesis] = []  # its further modes, each with its own matches
+        if cfg.verification.enabled:
+            with stage("verify"):
+                matches, verified, modes = self._verify(matches, objects, invalid, K, diag)
+        diag["matches"] = [_match_diag(mt, objects, m) for mt in matches]
+        if len(matches) < cfg.min_matches:
+            return Failure(f"{len(matches)} landmark(s) associated, need at least {cfg.min_matches}", diag)
+
+        with stage("retrieve"):
+            hypotheses = coarse_hypotheses(matches, objects, m, K, cfg.coarse, cfg.retrieval, cfg.no_coarse, diag)
+            # (without the verified pose as a hypothesis, _verify searched no further modes)
+            if hypotheses and verified is not None and cfg.verification.hypothesis and not cfg.no_coarse:
+                hypotheses.append(Hypothesis("verified", verified, matches))
+        if not hypotheses:
+            return Failure("no reference frame shares a matched landmark", diag)
+        compare = _timed(stage, "compare", self._explainer(masks, appearance, K))
+        room = max(0, cfg.verification.refined_modes - 1)
+        hypotheses += screen_modes(modes, room, compare if cfg.consistency.enabled else None, diag)
+        if cfg.no_refine and len(hypotheses) == 1:  # the prior itself: nothing to refine or to choose from
+            diag["chosen"] = hypotheses[0].source
+            return self._estimate(hypotheses[0].T_wc, hypotheses[0], objects, diag)
+
+        # without refinement, several hypotheses are scored at their starts (no step) to choose one
+        rcfg = cfg.refinement if not cfg.no_refine else dataclasses.replace(cfg.refinement, max_iterations=0)
+        with stage("refine" if not cfg.no_refine else "retrieve"):
+            batch = refine_hypotheses(hypotheses, objects, m, K, rcfg, cfg.seed, occluders)
+        explained = [0.0] * len(hypotheses)
+        if cfg.consistency.enabled:
+            drawn = compare([r.T_wc for r in batch.results])
+            explained = [e if np.isfinite(r.loss) else 0.0 for r, e in zip(batch.results, drawn)]
+        return self._choose(batch, explained, matches, objects, K, diag, stage)
+
+    def _choose(
+        self,
+        batch: RefinedBatch,
+        explained: list[float],
+        matches: list[Match],
+        objects: list[QueryObject],
+        K: np.ndarray,
+        diag: dict[str, Any],
+        stage: Stage,
+    ) -> PoseEstimate | Failure:
+        """The refined hypothesis that render-and-compare and the ICP loss choose, restarted
+        (``refinement.restart_degrees``); without refinement, its starting pose."""
+        cfg, m = self.config, self.map
+        assert m is not None
+        best = choose_hypothesis([r.loss for r in batch.results], explained, cfg.consistency.tie_share)
+        chosen, res = batch.hypotheses[best], batch.results[best]
+        if not cfg.no_refine and cfg.refinement.restart_degrees > 0 and np.isfinite(res.loss):
+            with stage("refine"):
+                res = restart(batch, best, m, K, cfg.refinement, cfg.seed, diag)
+        if chosen.matches is not matches:  # a further verification mode won: its matches explain the pose
+            diag["matches"] = [_match_diag(mt, objects, m) for mt in chosen.matches]
+        diag["hypotheses"] = batch_diag(batch, explained)
+        diag["chosen"] = chosen.source
+        if cfg.no_refine:
+            return self._estimate(chosen.T_wc, chosen, objects, diag)
+        diag["refine"] = {
+            "iterations": res.iterations,
+            "initial_loss": rounded(res.initial_loss),
+            "loss": rounded(res.loss),
+            "object_losses": {str(k): rounded(v) for k, v in res.object_losses.items()},
+            "outliers": res.outliers,
+        }
+        if res.reason is not None:
+            return Failure(res.reason, diag)
+        return self._estimate(res.T_wc, chosen, objects, diag)
+
+    def _estimate(
+        self, T_wc: np.ndarray, chosen: Hypothesis, objects: list[QueryObject], diag: dict[str, Any]
+    ) -> PoseEstimate:
+        """The pose, with the chosen hypothesis' start and a placement among its matched objects."""
+        m = self.map
+        assert m is not None
+        diag["prior_T_wc"] = np.round(chosen.T_wc, 6).tolist()
+        placed = []
+        for mt in chosen.matches:
+            lm = m.landmarks[mt.landmark]
+            placed.append(PlacedObject(lm.center, lm.box_min, lm.box_max, lm.category, objects[mt.query].phrase))
+        diag["explanation"] = explain_pose(T_wc, placed)
+        return PoseEstimate(T_wc, diag)
+
+    def _unfit(self, rgb: np.ndarray, K: np.ndarray) -> str | None:
+        """Why a query image and its intrinsics do not fit the map's camera, if they do not."""
+        m = self.map
+        assert m is not None
+        if rgb.ndim != 3 or rgb.shape[:2] != (m.height, m.width):
+            shape = rgb.shape[1::-1] if rgb.ndim >= 2 else rgb.shape
+            return f"query image is {shape}, the map's camera is {m.width}x{m.height}"
+        if K.shape != (3, 3) or not (0 <= K[0, 2] <= m.width and 0 <= K[1, 2] <= m.height) or K[0, 0] <= 0:
+            return "query intrinsics do not fit the image size (principal point outside the image)"
+        return None
+
+    def _segment(self, rgb: np.ndarray, instance: np.ndarray | None) -> tuple[list[ObjectMask], np.ndarray]:
+        """The query's masks large enough to match (the dataset's on the oracle-mask track, else the
+        segmenter's), and the union of all of them (every segment occludes)."""
+        m = self.map
+        assert m is not None
+        masks = self.gt_segmenter.segment(rgb, instance) if instance is not None else self.segmenter.segment(rgb)
+        occluders = np.zeros((m.height, m.width), bool)
+        for mk in masks:
+            occluders |= mk.mask
+        return [mk for mk in masks if int(mk.mask.sum()) >= self.min_mask_area], occluders
+
+    def _associate(
+        self,
+        rgb: np.ndarray,
+        masks: list[ObjectMask],
+        has_instances: bool,
+        invalid: frozenset[int],
+        diag: dict[str, Any],
+        stage: Stage,
+    ) -> tuple[list[QueryObject], list[Match], np.ndarray | None] | Failure:
+        """The query objects, their matches to landmarks, and every mask's visual similarity to every
+        landmark (none for the oracle association, which matches by instance id)."""
+        cfg, m = self.config, self.map
+        assert m is not None
         if cfg.association.oracle:
-            if query.instance is None:
+            if not has_instances:
                 return Failure("association.oracle (a diagnostic) needs the oracle-mask track", diag)
             largest = sorted(range(len(masks)), key=lambda i: -int(masks[i].mask.sum()))[: cfg.max_objects]
             zero = np.zeros(self.descriptors.shape[1], np.float32)
             objects = [_query_object(masks[i], zero, 0.0) for i in sorted(largest)]
             diag["unique"] = len(objects)
             with stage("associate"):
-                matches = oracle_matches(objects, self.ids, invalid)
-        else:
-            objects_or_failure = self._objects(rgb, masks, diag, stage)
-            if isinstance(objects_or_failure, Failure):
-                return objects_or_failure
-            objects, appearance = objects_or_failure
-            with stage("associate"):
-                graph = None if cfg.no_scene_graph else m.graph
-                # association sees every landmark; filtered ones (walls, floor) only veto the query
-                # objects that look most like them, instead of forcing those onto a valid look-alike
-                matches = associate(objects, self.ids, self.descriptors, graph, cfg.association, invalid)
-        if cfg.verification.enabled:
-            with stage("verify"):
-                matches, verified, alternatives = self._verify(matches, objects, invalid, K, diag)
-        diag["matches"] = [_match_diag(mt, objects, m) for mt in matches]
-        if len(matches) < cfg.min_matches:
-            return Failure(f"{len(matches)} landmark(s) associated, need at least {cfg.min_matches}", diag)
+                return objects, oracle_matches(objects, self.ids, invalid), None
+        described = self._objects(rgb, masks, diag, stage)
+        if isinstance(described, Failure):
+            return described
+        objects, appearance = described
+        with stage("associate"):
+            graph = None if cfg.no_scene_graph else m.graph
+            # association sees every landmark; filtered ones (walls, floor) only veto the query
+            # objects that look most like them, instead of forcing those onto a valid look-alike
+            return objects, associate(objects, self.ids, self.descriptors, graph, cfg.association, invalid), appearance
 
-        with stage("retrieve"):
-            hypotheses = self._hypotheses(matches, objects, K, diag)
-            if hypotheses and verified is not None and cfg.verification.hypothesis and not cfg.no_coarse:
-                hypotheses.append(("verified", verified))  # (without it, _verify searched no further modes)
-        if not hypotheses:
-            return Failure("no reference frame shares a matched landmark", diag)
-
-        explained_by = self._explainer(masks, appearance, K)
-        if alternatives:
-            alternatives = self._screen(alternatives, explained_by, diag, stage)
-        refining = not cfg.no_refine
-        if refining or len(hypotheses) + len(alternatives) > 1:  # several without refinement: keep the best-fitting
-            rcfg = cfg.refinement if refining else dataclasses.replace(cfg.refinement, max_iterations=0)
-            with stage("refine" if refining else "retrieve"):
-                match_sets = [matches] * len(hypotheses)
-                for source, alt_matches, T_alt in alternatives:  # each with its own matches
-                    hypotheses.append((source, T_alt))
-                    match_sets.append(alt_matches)
-                union, target_sets = _union(match_sets)
-                targets = self._targets(union, objects)
-                tables = target_tables(targets, K, rcfg, cfg.seed, occluders)  # shared with the restarts
-                results = refine_poses(
-                    [T for _, T in hypotheses],
-                    K,
-                    targets,
-                    rcfg,
-                    seed=cfg.seed,
-                    occluders=occluders,
-                    target_sets=target_sets,
-                    tables=tables,
-                )
-            explained = [0.0] * len(results)
-            if cfg.consistency.enabled:
-                with stage("compare"):
-                    drawn = explained_by([r.T_wc for r in results])
-                    explained = [e if np.isfinite(r.loss) else 0.0 for r, e in zip(results, drawn)]
-            best = choose_hypothesis([r.loss for r in results], explained, cfg.consistency.tie_share)
-            res = results[best]
-            if refining and rcfg.restart_degrees > 0 and np.isfinite(res.loss):
-                with stage("refine"):
-                    res = self._hop(res, union, target_sets[best], targets, tables, K, diag)
-            if match_sets[best] is not matches:  # a further verification mode won: its matches explain the pose
-                matches = match_sets[best]
-                diag["matches"] = [_match_diag(mt, objects, m) for mt in matches]
-            diag["hypotheses"] = [
-                {
-                    "source": src,
-                    "initial_loss": _num(r.initial_loss),
-                    "loss": _num(r.loss),
-                    "explained": round(e, 4),
-                    "iterations": r.iterations,
-                    "T_wc": np.round(r.T_wc, 6).tolist(),
-                }
-                for (src, _), r, e in zip(hypotheses, results, explained)
-            ]
-            diag["chosen"] = hypotheses[best][0]
-            T_prior = hypotheses[best][1]
-            if refining:
-                diag["refine"] = {
-                    "iterations": res.iterations,
-                    "initial_loss": _num(res.initial_loss),
-                    "loss": _num(res.loss),
-                    "object_losses": {str(k): _num(v) for k, v in res.object_losses.items()},
-                    "outliers": res.outliers,
-                }
-                if res.reason is not None:
-                    return Failure(res.reason, diag)
-            T = res.T_wc if refining else T_prior
-        else:
-            diag["chosen"] = hypotheses[0][0]
-            T = T_prior = hypotheses[0][1]
-        diag["prior_T_wc"] = np.round(T_prior, 6).tolist()
-
-        placed = [
-            PlacedObject(
-                m.landmarks[mt.landmark].center,
-                m.landmarks[mt.landmark].box_min,
-                m.landmarks[mt.landmark].box_max,
-                m.landmarks[mt.landmark].category,
-                objects[mt.query].phrase,
-            )
-            for mt in matches
-        ]
-        diag["explanation"] = explain_pose(T, placed)
-        return PoseEstimate(T, diag)
-
-    def _hop(
-        self,
-        res: RefineResult,
-        matches: list[Match],
-        target_set: list[int],
-        targets: list[RefineTarget],
-        tables: TargetTables,
-        K: np.ndarray,
-        diag: dict[str, Any],
-    ) -> RefineResult:
-        """Basin hopping (``refinement.restart_degrees``): ``res``, the refinement of ``matches[target_set]``,
-        refined again from starts orbiting those landmarks' centre; the lowest loss wins. The same
-        ``targets`` (of ``matches``) and ``tables`` as in its batch, so that the same points are subsampled
-        and the losses compare."""
-        cfg, m = self.config, self.map
-        assert m is not None
-        pivot = np.mean([m.landmarks[matches[i].landmark].center for i in target_set], axis=0)
-        starts = orbit_starts(res.T_wc, pivot, cfg.refinement.restart_degrees)
-        rcfg = dataclasses.replace(
-            cfg.refinement, max_iterations=min(cfg.refinement.max_iterations, cfg.refinement.restart_iterations)
-        )
-        hops = refine_poses(
-            starts, K, targets, rcfg, seed=cfg.seed, target_sets=[target_set] * len(starts), tables=tables
-        )
-        # over the objects that count in res.loss: a restart that pushes one more object past the outlier
-        # factor would otherwise win by dropping it from its own mean
-        counted = [i for i in res.object_losses if i not in res.outliers]
-
-        def loss(r: RefineResult) -> float:
-            return float(np.mean([r.object_losses[i] for i in counted])) if np.isfinite(r.loss) else math.inf
-
-        hop = min(hops, key=loss)
-        won = loss(hop) < (1.0 - cfg.refinement.restart_margin) * loss(res)
-        diag["restart"] = {"loss": _num(loss(hop)), "before": _num(loss(res)), "won": won}
-        return hop if won else res
-
-    def _explainer(
-        self, masks: list[ObjectMask], appearance: np.ndarray | None, K: np.ndarray
-    ) -> Callable[[list[np.ndarray]], list[float]]:
+    def _explainer(self, masks: list[ObjectMask], appearance: np.ndarray | None, K: np.ndarray) -> Compare:
         """The render-and-compare score (:mod:`.consistency`) of camera-to-world poses against all query
         masks, the query's label grid and pair weights computed once; without appearance (the oracle
         diagnostic) every mask-landmark pair weighs 1."""
@@ -444,31 +424,8 @@ class OpenReLoc:
         )
         return lambda poses: [consistency(self.renderer.render(T, K), labels, weights) for T in poses]
 
-    def _screen(
-        self,
-        alternatives: list[tuple[str, list[Match], np.ndarray]],
-        explained_by: Callable[[list[np.ndarray]], list[float]],
-        diag: dict[str, Any],
-        stage: Any,
-    ) -> list[tuple[str, list[Match], np.ndarray]]:
-        """The further verification modes worth refining (``verification.refined_modes``): those whose
-        unrefined pose explains the query best by render-and-compare, or, with it switched off, the
-        RANSAC's next best. Drawing a pose is far cheaper than refining it, so many are screened for a few
-        refined."""
-        cfg = self.config
-        room = max(0, cfg.verification.refined_modes - 1)
-        if len(alternatives) <= room:
-            return alternatives
-        if not cfg.consistency.enabled:
-            return alternatives[:room]
-        with stage("compare"):
-            drawn = explained_by([T for _, _, T in alternatives])
-        diag["verification"]["screened"] = {src: round(e, 4) for (src, _, _), e in zip(alternatives, drawn)}
-        keep = sorted(np.argsort(-np.asarray(drawn), kind="stable")[:room].tolist())
-        return [alternatives[j] for j in keep]
-
     def _objects(
-        self, rgb: np.ndarray, masks: list[ObjectMask], diag: dict[str, Any], stage: Any
+        self, rgb: np.ndarray, masks: list[ObjectMask], diag: dict[str, Any], stage: Stage
     ) -> tuple[list[QueryObject], np.ndarray] | Failure:
         """Embed the query objects, keep the unique ones and describe them (paper section 3.2); also
         every mask's visual similarity to every landmark."""
@@ -496,13 +453,6 @@ class OpenReLoc:
                     o.phrase, o.text = p, e
         return objects, visual @ self.descriptors.T
 
-    def _targets(self, matches: list[Match], objects: list[QueryObject]) -> list[RefineTarget]:
-        """What the refinement aligns: each matched object's mask with its landmark's points."""
-        assert self.map is not None
-        return [
-            RefineTarget(mt.landmark, self.map.landmarks[mt.landmark].points, objects[mt.query].mask) for mt in matches
-        ]
-
     def _verify(
         self,
         matches: list[Match],
@@ -510,10 +460,10 @@ class OpenReLoc:
         invalid: frozenset[int],
         K: np.ndarray,
         diag: dict[str, Any],
-    ) -> tuple[list[Match], np.ndarray | None, list[tuple[str, list[Match], np.ndarray]]]:
+    ) -> tuple[list[Match], np.ndarray | None, list[Hypothesis]]:
         """Object-level RANSAC over the matched objects' candidates (:func:`verification_evidence`): the
         matches one pose explains, and that pose; the association unchanged when none does. Third: the
-        further modes' (source, matches, pose), with ``verification.modes`` > 1."""
+        further modes, each with its own matches, with ``verification.modes`` > 1."""
         cfg = self.config
         matched = {mt.query: mt for mt in matches}
         vcfg = cfg.verification
@@ -569,7 +519,10 @@ class OpenReLoc:
         return (
             out,
             result.T_wc,
-            [(f"verified:{j}", as_matches(a.assignment), a.T_wc) for j, a in enumerate(result.alternatives, start=2)],
+            [
+                Hypothesis(f"verified:{j}", a.T_wc, as_matches(a.assignment))
+                for j, a in enumerate(result.alternatives, start=2)
+            ],
         )
 
     def _place_ranking(self, objects: list[QueryObject], sims: np.ndarray, invalid: frozenset[int]) -> np.ndarray:
@@ -583,56 +536,6 @@ class OpenReLoc:
         scores[:, [r for r, i in enumerate(self.ids) if i in invalid]] = -np.inf
         return scores + vcfg.place_bonus * place_landmarks(scores, self.frame_visibility, vcfg.place_frames)
 
-    def _hypotheses(
-        self, matches: list[Match], objects: list[QueryObject], K: np.ndarray, diag: dict[str, Any]
-    ) -> list[tuple[str, np.ndarray]]:
-        """(source, T_wc) starting poses: the ranked reference frames and the PnP pose (coarse stage),
-        or only the uninformed start of the no-coarse ablation."""
-        cfg, m = self.config, self.map
-        assert m is not None
-        boxes = {mt.landmark: objects[mt.query].box.astype(np.float64) for mt in matches}
-        ret = retrieve_reference(boxes, m.reference_frames, cfg.retrieval)
-        if ret is None:
-            return []
-        diag["reference_frame"] = {
-            "index": ret.frame.index,
-            "shared": ret.shared,
-            "score": round(ret.score, 4),
-            "ranking": ret.ranking,
-        }
-        if cfg.no_coarse:
-            return [("uninformed", self._uninformed_start([mt.landmark for mt in matches]))]
-        out = [(f"reference:{f.index}", f.T_wc) for f in ret.ranked[: max(1, cfg.coarse.top_frames)]]
-        if cfg.coarse.pnp:
-            qmasks = [objects[mt.query].mask for mt in matches]
-            centroids = np.array([np.argwhere(mk)[:, ::-1].mean(0) for mk in qmasks])
-            truncated = np.array([touches_border(mk) for mk in qmasks])
-            T = pnp_prior(
-                centroids,
-                truncated,
-                [m.landmarks[mt.landmark].points for mt in matches],
-                K,
-                (m.width, m.height),
-                cfg.coarse,
-            )
-            if T is not None:
-                out.append(("pnp", T))
-        return out
-
-    def _uninformed_start(self, matched: list[int]) -> np.ndarray:
-        """The no-coarse ablation's start: at the centroid of all landmarks, at the mean height of the
-        reference cameras, looking at the matched landmarks' centroid."""
-        m = self.map
-        assert m is not None
-        centres = np.stack([lm.center for lm in m.landmarks.values()])
-        eye = centres.mean(axis=0)
-        if m.reference_frames:
-            eye[2] = float(np.mean([f.T_wc[2, 3] for f in m.reference_frames]))
-        target = np.stack([m.landmarks[i].center for i in matched]).mean(axis=0)
-        if np.linalg.norm(target - eye) < 1e-3:
-            target = eye + np.array([1.0, 0.0, 0.0])
-        return geometry.look_at(eye, target)
-
 
 @functools.cache
 def _blas_controller() -> ThreadpoolController:
@@ -640,17 +543,6 @@ def _blas_controller() -> ThreadpoolController:
     small (hundreds of rows), but OpenBLAS's idle workers busy-wait after each call and take the cores
     from torch (the text encoder's forward pass then runs at less than half its speed)."""
     return ThreadpoolController()
-
-
-def choose_hypothesis(losses: list[float], explained: list[float], tie_share: float) -> int:
-    """Index of the refined hypothesis to keep: among those explaining at least ``1 - tie_share`` of the
-    best render-and-compare score, the lowest ICP loss (the coarse label grid separates wrong solutions
-    but cannot rank poses a few decimetres apart; the loss can). Non-finite losses never win."""
-    finite = [i for i, v in enumerate(losses) if np.isfinite(v)]
-    if not finite:
-        return 0
-    top = max(explained[i] for i in finite)
-    return min((i for i in finite if explained[i] >= (1.0 - tie_share) * top), key=lambda i: (losses[i], i))
 
 
 def verification_evidence(
@@ -707,16 +599,6 @@ class TextCache(ImageTextEncoder):
         return self.inner.config()
 
 
-def _union(match_sets: list[list[Match]]) -> tuple[list[Match], list[list[int]]]:
-    """The distinct (query object, landmark) matches of all match sets, in order of first use, and each
-    set as indices into them: one refinement batch serves hypotheses with different matches."""
-    first: dict[tuple[int, int], Match] = {}
-    for mt in (mt for ms in match_sets for mt in ms):
-        first.setdefault((mt.query, mt.landmark), mt)
-    position = {key: i for i, key in enumerate(first)}
-    return list(first.values()), [[position[mt.query, mt.landmark] for mt in ms] for ms in match_sets]
-
-
 def _query_object(mk: ObjectMask, visual: np.ndarray, gamma: float) -> QueryObject:
     return QueryObject(
         mask=mk.mask,
@@ -735,18 +617,18 @@ def _match_diag(mt: Match, objects: list[QueryObject], m: ObjectMap) -> dict[str
         "query_instance": o.instance_id,
         "phrase": o.phrase,
         "how": mt.how,
-        "visual_sim": _num(mt.visual_sim),
+        "visual_sim": rounded(mt.visual_sim),
         "text_sim": None if mt.text_sim is None else round(mt.text_sim, 4),
         "graph_score": None if mt.graph_score is None else round(mt.graph_score, 4),
         "uniqueness": round(o.uniqueness, 6),
     }
 
 
-def _num(v: float) -> float | None:
-    return round(float(v), 4) if np.isfinite(v) else None
+Stage = Callable[[str], AbstractContextManager[None]]
+"""``with stage(name):`` adds the block's time to the query's timing of stage ``name``."""
 
 
-def _stage_timer(timings: dict[str, float]) -> Any:
+def _stage_timer(timings: dict[str, float]) -> Stage:
     @contextmanager
     def stage(name: str) -> Iterator[None]:
         t = time.perf_counter()
@@ -756,6 +638,16 @@ def _stage_timer(timings: dict[str, float]) -> Any:
             timings[name] = round(timings.get(name, 0.0) + time.perf_counter() - t, 4)  # a stage may run twice
 
     return stage
+
+
+def _timed(stage: Stage, name: str, compare: Compare) -> Compare:
+    """``compare`` with the time of every call added to stage ``name``."""
+
+    def timed(poses: list[np.ndarray]) -> list[float]:
+        with stage(name):
+            return compare(poses)
+
+    return timed
 
 
 class OpenReLocOracleAssociation(OpenReLoc):

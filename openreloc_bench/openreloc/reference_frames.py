@@ -2,7 +2,7 @@
 
 A *sighting* is one landmark seen by one mapping frame: its visibility (share of the landmark's
 scene points that project inside the image, in front of the camera and are not occluded, i.e. pass
-the depth test of :func:`~openreloc_bench.openreloc.mapping.observe`) and the 2D box of those
+the depth test of :func:`~openreloc_bench.reconstruction.observation.observe`) and the 2D box of those
 points. The depth test matters: without it a chair behind a wall would count as visible.
 
 Reference frames keep only a pose and {landmark id: 2D box}. Frames are visited in capture order and
@@ -18,7 +18,7 @@ import numpy as np
 
 from openreloc_bench.config import check_ranges
 from openreloc_bench.openreloc.map import ReferenceFrame
-from openreloc_bench.openreloc.mapping import FrameObservation
+from openreloc_bench.reconstruction.observation import FrameObservation
 
 
 @dataclass

@@ -14,9 +14,9 @@ distance transform that also returns the nearest pixel (``cv2.distanceTransformW
 step only gathers coordinates (ICP-style: the correspondence is fixed within a step and the residual
 ``p - nearest(p)`` is differentiable in ``p``). All objects of all hypotheses are padded into one
 batch (hypotheses may align different match sets: each group of hypotheses with the same set keeps its
-own optimiser and stopping rules, and leaves the batch when it stops), whose losses and gradients one
-compiled pass computes (:func:`.icp_kernel.dual_path`, the chain rule written out): as tensor
-operations, a step's cost was the operations' overhead more than their arithmetic.
+own optimiser and stopping rules, and leaves the batch when it stops, :class:`.icp_batch.BatchProblem`),
+whose losses and gradients one compiled pass computes (:func:`.icp_kernel.dual_path`, the chain rule
+written out): as tensor operations, a step's cost was the operations' overhead more than their arithmetic.
 
 Parametrisation: the pose is ``T_wc = T_init @ [R(q) | t]``, with ``q`` (w, x, y, z, normalised in
 the forward pass) and ``t`` expressed in the *initial camera frame*. The rotation then turns the
@@ -31,18 +31,17 @@ pose below the fixed-lr jitter and gives the early-stopping rule (stop after ``l
 
 from __future__ import annotations
 
-import copy
 import math
 from dataclasses import dataclass, field
 from typing import Literal
 
 import cv2
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from openreloc_bench import geometry
 from openreloc_bench.config import check_ranges
-from openreloc_bench.openreloc.icp_kernel import BIG, dual_path
+from openreloc_bench.openreloc.icp_batch import BatchProblem, TargetTables
+from openreloc_bench.openreloc.icp_kernel import BIG
 
 
 @dataclass
@@ -111,7 +110,7 @@ class RefineConfig:
     """Steps of the Huber-threshold decay (used only with ``huber_delta_start``)."""
     restart_degrees: float = 6.0
     """Beyond the paper (basin hopping): the chosen refined pose is refined again from four starts orbiting
-    its matched landmarks' centre by +-this many degrees (:func:`orbit_starts`), and the lowest loss
+    its matched landmarks' centre by +-this many degrees (:func:`.hypotheses.orbit_starts`), and the lowest loss
     wins. Nearest-pixel correspondences make the loss landscape a chain of shallow basins: a sideways
     shift plus a turn that keeps the objects in view barely changes it. Many queries that end 0.5-1 m
     off have right matches that, refined from the *truth*, converge near it at a lower loss than the
@@ -212,35 +211,6 @@ def backward_pixels(mask: np.ndarray, which: str) -> np.ndarray:
     return contour if contour.any() else mask
 
 
-def _quaternion_forms() -> np.ndarray:
-    """(3, 3, 4, 4) symmetric M with R_ij = q^T M_ij q for a unit quaternion q = (w, x, y, z): the
-    homogeneous form of the rotation matrix (e.g. R_00 = w^2 + x^2 - y^2 - z^2, R_01 = 2 (xy - wz))."""
-    M = np.zeros((3, 3, 4, 4), np.float32)
-    for i, diagonal in enumerate(([1.0, 1.0, -1.0, -1.0], [1.0, -1.0, 1.0, -1.0], [1.0, -1.0, -1.0, 1.0])):
-        M[i, i][np.diag_indices(4)] = diagonal
-    w, x, y, z = range(4)
-    for (i, j), (a, b), (c, d), sign in [
-        ((0, 1), (x, y), (w, z), -1.0),
-        ((1, 0), (x, y), (w, z), 1.0),
-        ((0, 2), (x, z), (w, y), 1.0),
-        ((2, 0), (x, z), (w, y), -1.0),
-        ((1, 2), (y, z), (w, x), -1.0),
-        ((2, 1), (y, z), (w, x), 1.0),
-    ]:
-        M[i, j, a, b] = M[i, j, b, a] = 1.0
-        M[i, j, c, d] = M[i, j, d, c] = sign
-    return M
-
-
-_QUAT_FORMS = _quaternion_forms()
-
-
-def _quat_to_rotmat(q: np.ndarray) -> np.ndarray:
-    """(B, 4) float32 quaternions (w, x, y, z; normalised here) -> (B, 3, 3) rotation matrices."""
-    qn = q / np.linalg.norm(q, axis=-1, keepdims=True)
-    return np.einsum("bk,ijkl,bl->bij", qn, _QUAT_FORMS, qn)
-
-
 def working_scale(height: int, width: int, max_side: int) -> float:
     """Factor masks are resized by so their longer side is at most ``max_side`` (1 = full size)."""
     return 1.0 if max_side <= 0 else min(1.0, max_side / max(height, width))
@@ -261,44 +231,6 @@ def resize_mask(mask: np.ndarray, s: float) -> np.ndarray:
     h, w = mask.shape
     size = (max(1, round(w * s)), max(1, round(h * s)))
     return cv2.resize(np.asarray(mask, np.float32), size, interpolation=cv2.INTER_AREA) >= 0.5
-
-
-@dataclass
-class _Terms:
-    """What one loss evaluation keeps for its gradient (B hypotheses, O objects)."""
-
-    R: np.ndarray
-    """(B, 3, 3) rotations of the local poses."""
-    g_R: np.ndarray
-    """(B, O, 3, 3) each object's loss gradient with respect to its hypothesis' rotation matrix."""
-    g_sum: np.ndarray
-    """(B, O, 3) each object's loss gradient with respect to its points in the current camera, summed."""
-
-
-@dataclass
-class TargetTables:
-    """What the refinement needs of its targets, whatever the starting poses: subsampled points and
-    backward-path pixels, and each target's per-pixel table, at the working resolution. Made once per
-    query (:func:`target_tables`) and passed to every refinement of the same targets."""
-
-    landmark_ids: list[int]
-    pts_w: np.ndarray
-    """(targets, P, 3) float64 subsampled world points, padded."""
-    pts_valid: np.ndarray
-    """(targets, P) which points are real."""
-    pix: np.ndarray
-    """(targets, M, 2) float32 backward-path mask pixels (x, y), padded with -BIG."""
-    pix_valid: np.ndarray
-    """(targets, M) which pixels are real."""
-    pixel_table: np.ndarray
-    """(targets * H * W, 4) float32 per pixel of each target's image: nearest mask pixel (x, y), outside
-    the mask, counted (not hidden by another segment)."""
-    camera: np.ndarray
-    """float32 (fx, fy, cx, cy) at the working resolution."""
-    height: int
-    width: int
-    scale: float
-    """Working resolution / full resolution."""
 
 
 def target_tables(
@@ -356,106 +288,6 @@ def target_tables(
         W,
         s,
     )
-
-
-class _Problem:
-    """Padded, batched arrays of all objects and hypotheses; evaluates per-object losses at local poses.
-
-    Each hypothesis aligns its own set of targets: its objects ("slots", padded to the longest set)
-    index the targets, and padding (``real`` false) has no points and no pixels, so it adds nothing.
-
-    Everything runs at the working resolution (``max_side``); ``delta`` and the reported losses are
-    converted so that the outside world only sees full-resolution pixels.
-    """
-
-    def __init__(
-        self, T_inits: list[np.ndarray], tables: TargetTables, cfg: RefineConfig, target_sets: list[list[int]]
-    ):
-        n_hyp, H, W = len(T_inits), tables.height, tables.width
-        self.H, self.W, self.cfg, self.scale = H, W, cfg, tables.scale
-        self.unit = tables.scale**2  # full-resolution squared pixels -> working squared pixels
-        # each hypothesis' objects ("slots", padded to the longest set): which target, and whether real
-        n_obj = max(len(ts) for ts in target_sets)
-        slots = np.zeros((n_hyp, n_obj), np.int64)
-        real = np.zeros((n_hyp, n_obj), bool)
-        for b, ts in enumerate(target_sets):
-            slots[b, : len(ts)], real[b, : len(ts)] = ts, True
-        # its objects' points in its initial camera frame: (B, n_obj, n_pts, 3)
-        n_pts = tables.pts_w.shape[1]
-        pts_c = np.stack(
-            [
-                geometry.transform_points(geometry.invert(T), tables.pts_w[row].reshape(-1, 3)).reshape(n_obj, n_pts, 3)
-                for T, row in zip(T_inits, slots)
-            ]
-        )
-        self.slots, self.real = slots, real
-        self.pts = np.ascontiguousarray(pts_c, dtype=np.float32)
-        self.pts_valid = tables.pts_valid[slots] & real[..., None]
-        self.pix = np.ascontiguousarray(tables.pix[slots])
-        self.pix_valid = tables.pix_valid[slots] & real[..., None]
-        self.pixel_table = tables.pixel_table
-        self.offset = slots * (H * W)
-        self.camera = tables.camera
-        self.n_hyp, self.n_obj = n_hyp, n_obj
-        self.nn_idx = np.zeros(self.pix_valid.shape, np.int64)
-
-    def subset(self, rows: list[int]) -> _Problem:
-        """The problem of hypotheses ``rows`` only (the per-pixel table is shared, not copied), with
-        their current backward correspondences: stopped hypotheses leave the batch instead of costing
-        every later step."""
-        sub = copy.copy(self)
-        sub.slots, sub.real = self.slots[rows], self.real[rows]
-        sub.pts, sub.pts_valid = self.pts[rows], self.pts_valid[rows]
-        sub.pix, sub.pix_valid, sub.offset = self.pix[rows], self.pix_valid[rows], self.offset[rows]
-        sub.nn_idx = self.nn_idx[rows]
-        sub.n_hyp = len(rows)
-        return sub
-
-    def losses(self, q: np.ndarray, t: np.ndarray, delta: float, refresh: bool = True) -> np.ndarray:
-        """(B, n_obj) dual-path loss of each object at the local poses (q (B, 4), t (B, 3)), in
-        working-resolution squared pixels; ``delta`` in full-resolution pixels. ``refresh=False``
-        keeps the backward path's previous nearest-point correspondences."""
-        return self.evaluate(q, t, delta, refresh)[0]
-
-    def evaluate(self, q: np.ndarray, t: np.ndarray, delta: float, refresh: bool = True) -> tuple[np.ndarray, _Terms]:
-        """:meth:`losses`, plus each object's gradient, which :meth:`gradient` weights and sums
-        (:func:`.icp_kernel.dual_path`)."""
-        R = _quat_to_rotmat(q)  # (B, 3, 3)
-        losses, g_R, g_sum = dual_path(
-            R,
-            t,
-            self.pts,
-            self.pts_valid,
-            self.pixel_table,
-            self.offset,
-            self.pix,
-            self.pix_valid,
-            self.nn_idx,
-            self.camera,
-            self.H,
-            self.W,
-            self.cfg.min_depth,
-            delta * self.scale,
-            refresh,
-        )
-        return losses, _Terms(R, g_R.astype(np.float32), g_sum.astype(np.float32))
-
-    def gradient(self, q: np.ndarray, t: np.ndarray, terms: _Terms, coef: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """d/d(q, t) of sum_(b, o) coef[b, o] * loss[b, o], from the objects' gradients of :meth:`evaluate`:
-        pc = (p - t) R gives dL/dt = -R sum(dL/dpc); the rotation's through :func:`_quat_gradient`.
-        ``tests/openreloc/test_refine.py`` checks it against autograd through a torch form of the loss."""
-        g_R = np.einsum("bo,boij->bij", coef, terms.g_R)
-        g_t = -(terms.R @ np.einsum("bo,boj->bj", coef, terms.g_sum)[..., None])[..., 0]
-        return _quat_gradient(q, g_R), g_t
-
-
-def _quat_gradient(q: np.ndarray, g_R: np.ndarray) -> np.ndarray:
-    """(B, 4) gradient w.r.t. the unnormalised quaternion ``q`` given (B, 3, 3) d loss / d R of
-    :func:`_quat_to_rotmat`: d R_ij / d q_unit = 2 M_ij q_unit, then the normalisation's projection."""
-    norm = np.linalg.norm(q, axis=-1, keepdims=True)
-    qn = q / norm
-    g = 2.0 * np.einsum("bij,ijkl,bl->bk", g_R, _QUAT_FORMS, qn)
-    return (g - qn * (qn * g).sum(-1, keepdims=True)) / norm
 
 
 def _weights(obj_losses: np.ndarray, real: np.ndarray, cfg: RefineConfig, active: bool, unit: float) -> np.ndarray:
@@ -540,18 +372,6 @@ def _check_target_sets(target_sets: list[list[int]], targets: list[RefineTarget]
             raise ValueError(f"target set {b} must hold indices of the {len(targets)} targets, at least one: {ts}")
         if len({targets[i].landmark_id for i in ts}) != len(ts):
             raise ValueError(f"target set {b} aligns a landmark twice: {[targets[i].landmark_id for i in ts]}")
-
-
-def orbit_starts(T_wc: np.ndarray, pivot: np.ndarray, degrees: float) -> list[np.ndarray]:
-    """Four camera-to-world poses: ``T_wc`` orbited about ``pivot`` (world point) by -``degrees`` and
-    +``degrees`` around the world's vertical axis, then around the camera's x axis. The pivot stays
-    where it was in the image, so each start keeps the matched objects in view."""
-    out = []
-    for axis in (np.array([0.0, 0.0, 1.0]), T_wc[:3, 0]):
-        for sign in (-1.0, 1.0):
-            R = Rotation.from_rotvec(np.radians(sign * degrees) * axis).as_matrix()
-            out.append(geometry.make_pose(R @ T_wc[:3, :3], pivot + R @ (T_wc[:3, 3] - pivot)))
-    return out
 
 
 def refine_pose(
@@ -641,7 +461,7 @@ def _optimise(
 ) -> list[RefineResult]:
     order, slices = _grouped(target_sets)
     T_inits = [T_inits[b] for b in order]
-    problem = _Problem(T_inits, tables, cfg, [target_sets[b] for b in order])
+    problem = BatchProblem(T_inits, tables, [target_sets[b] for b in order], cfg.min_depth)
     B, unit = len(T_inits), problem.unit
     groups = [_Group.start(rows, cfg) for rows in slices]
     # state of the live batch (the running groups' hypotheses, in order); a group that stops leaves it
@@ -699,12 +519,13 @@ def _optimise(
     iterations = [0] * B
     for g in groups:
         iterations[g.rows] = [g.stopped or it] * (g.rows.stop - g.rows.start)
-    results = _results(problem, T_inits, tables.landmark_ids, done_q, done_t, initial, why, iterations)
+    results = _results(problem, cfg, T_inits, tables.landmark_ids, done_q, done_t, initial, why, iterations)
     return [results[order.index(b)] for b in range(B)]
 
 
 def _results(
-    problem: _Problem,
+    problem: BatchProblem,
+    cfg: RefineConfig,
     T_inits: list[np.ndarray],
     landmark_ids: list[int],
     best_q: np.ndarray,
@@ -714,7 +535,7 @@ def _results(
     iterations: list[int],
 ) -> list[RefineResult]:
     """Score the final local poses with the (shared) loss and express them as camera-to-world poses."""
-    cfg, unit = problem.cfg, problem.unit
+    unit = problem.unit
     obj = problem.losses(best_q, best_t, cfg.huber_delta)
     w = _weights(obj, problem.real, cfg, True, unit)
     final = (obj * w).sum(-1) / np.maximum(w.sum(-1), 1.0)

@@ -42,7 +42,7 @@ from scipy.spatial.transform import Rotation
 
 from openreloc_bench import geometry
 from openreloc_bench.config import check_ranges
-from openreloc_bench.openreloc.retrieval import solve_pnp
+from openreloc_bench.openreloc.coarse_prior import solve_pnp
 from openreloc_bench.vision.preprocess import touches_border
 
 _DIRECTIONS = np.array(
@@ -97,7 +97,7 @@ class VerifyConfig:
     place_frames: int = 3
     """A place prior on the candidates: after the association's choice (``place_keeps_choice``), rank each
     object's candidates by appearance plus ``place_bonus`` for the landmarks that the ``place_frames``
-    reference frames looking most like the query see (:func:`~.retrieval.place_landmarks`); 0 = the
+    reference frames looking most like the query see (:func:`~.coarse_prior.place_landmarks`); 0 = the
     association's candidates, then the visual cosine. A look-alike in another room is the usual wrong
     candidate, and the place ranking puts the true landmark first more often than the visual cosine or
     the association's choice do, so more missed queries get three right candidates to draw."""

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from baselines.features import FeatureMap, extract_orb
+from baselines.frame_retrieval import hamming_matrix
 from baselines.orb_reloc import MAP_FORMAT, MAP_VERSION, OrbReloc, OrbRelocConfig, PnPRansac, optimize_pose
-from baselines.retrieval import hamming_matrix
 from openreloc_bench import geometry
 from openreloc_bench.data.scene import Scene
 from openreloc_bench.errors import ConfigError

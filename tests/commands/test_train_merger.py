@@ -6,9 +6,9 @@ from pathlib import Path
 import pytest
 
 from openreloc_bench.cli import main
-from openreloc_bench.openreloc.instance_repair import FEATURES, MergeClassifier
+from openreloc_bench.reconstruction.instance_repair import FEATURES, MergeClassifier
 from tests.openreloc.boxworld import ROOM, write_boxworld
-from tests.openreloc.test_instance_repair import PARTS
+from tests.reconstruction.test_instance_repair import PARTS
 
 
 @pytest.fixture(scope="module")

@@ -9,12 +9,13 @@ import pytest
 
 from openreloc_bench.cli import main
 from openreloc_bench.errors import ConfigError
-from openreloc_bench.openreloc import mapping
 from openreloc_bench.openreloc.build import MappingConfig, build_object_map
 from openreloc_bench.openreloc.map import ObjectMap
+from openreloc_bench.reconstruction.fusion import FusionConfig
+from openreloc_bench.reconstruction.lifting import InstanceConfig
 from tests.openreloc.boxworld import MeanColorEncoder, NoisyMaskSegmenter, boxworld_sequence
 
-CFG = MappingConfig(fusion=mapping.FusionConfig(voxel_size=0.05))
+CFG = MappingConfig(fusion=FusionConfig(voxel_size=0.05))
 
 
 @pytest.fixture(scope="module")
@@ -50,7 +51,7 @@ def test_oracle_map(seq, tmp_path: Path) -> None:
 
 
 def test_segmenter_map_by_clustering_and_fill(seq) -> None:
-    instances = mapping.InstanceConfig(grouping="clustering")
+    instances = InstanceConfig(grouping="clustering")
     instances.repair.fill = True
     cfg = MappingConfig(fusion=CFG.fusion, instances=instances)
     m = build_object_map(seq, cfg, MeanColorEncoder(), NoisyMaskSegmenter(split_prob=0.0), progress=False)
@@ -66,7 +67,7 @@ def test_no_masks_and_no_segmenter(seq) -> None:
 
 
 def test_segmenter_map_by_affinity_grouping(seq) -> None:
-    instances = mapping.InstanceConfig(grouping="affinity")
+    instances = InstanceConfig(grouping="affinity")
     instances.affinity.min_region_area = 0.05  # 20 points of the 5 cm grid
     cfg = MappingConfig(fusion=CFG.fusion, instances=instances)
     m = build_object_map(seq, cfg, MeanColorEncoder(), NoisyMaskSegmenter(split_prob=0.0), progress=False)

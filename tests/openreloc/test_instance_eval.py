@@ -3,7 +3,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from openreloc_bench.openreloc.instance_eval import instance_report
+from openreloc_bench.data.scene import ObjectInfo
+from openreloc_bench.openreloc.instance_eval import box_point_labels, instance_report
 
 
 def line(n: int, length: float) -> np.ndarray:
@@ -47,3 +48,21 @@ def test_instance_report_names_each_objects_error_by_size() -> None:
 def test_instance_report_of_an_empty_map_misses_everything() -> None:
     q = instance_report(line(50, 1.0), {}, {1: np.arange(50)})
     assert q["precision"] == q["recall"] == 0.0 and q["objects"]["missed"]["medium"] == 1
+
+
+def test_box_point_labels_prefer_the_smallest_box_and_absorb_surface_noise() -> None:
+    objects = {
+        1: ObjectInfo(1, "floor", aabb=[[-2, -2, -0.1], [2, 2, 0.0]], structural=True),
+        2: ObjectInfo(2, "table", aabb=[[0, 0, 0], [1, 1, 0.8]]),
+        3: ObjectInfo(3, "lamp", aabb=[[0.4, 0.4, 0.8], [0.6, 0.6, 1.2]]),
+    }
+    pts = np.array(
+        [
+            [-1, -1, 0.01],  # floor with surface noise above it: only within the margin of the floor
+            [0.5, 0.5, 0.79],  # table top
+            [0.5, 0.5, 0.81],  # lamp base (inside the table box's margin too: the strict lamp box wins)
+            [0.5, 0.5, -0.005],  # floor under the table: strictly inside the floor only
+            [3, 3, 3],  # nowhere
+        ]
+    )
+    np.testing.assert_array_equal(box_point_labels(pts, objects, 0.03), [1, 2, 3, 1, 0])

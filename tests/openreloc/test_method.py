@@ -3,7 +3,6 @@ ablation switches, and every bad input answered by a Failure (never an exception
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import numpy as np
@@ -14,11 +13,11 @@ from openreloc_bench import geometry
 from openreloc_bench.data.scene import Scene
 from openreloc_bench.errors import ConfigError, DataError
 from openreloc_bench.methods import Failure, PoseEstimate, QueryFrame, create_method
+from openreloc_bench.openreloc import hypotheses as hypotheses_module
 from openreloc_bench.openreloc import method as method_module
 from openreloc_bench.openreloc.association import Match, QueryObject
 from openreloc_bench.openreloc.map import ObjectMap
-from openreloc_bench.openreloc.method import choose_hypothesis, verification_evidence
-from openreloc_bench.openreloc.refine import RefineResult
+from openreloc_bench.openreloc.method import verification_evidence
 from openreloc_bench.vision.base import register_encoder
 from tests.openreloc.boxworld import ROOM, MeanColorEncoder, camera_poses, render, write_boxworld
 
@@ -174,19 +173,6 @@ def test_the_best_explained_hypothesis_wins(map_dir: Path) -> None:
     assert next(h for h in hyps if h["source"] == off.diagnostics["chosen"])["loss"] == lowest
 
 
-@pytest.mark.parametrize(
-    ("losses", "explained", "tie", "expected"),
-    [
-        ([5.0, 1.0, 3.0], [4.0, 2.0, 3.9], 0.1, 2),  # the low-loss pose explains too little; of the ties, lower loss
-        ([5.0, 1.0, 3.0], [4.0, 2.0, 3.9], 0.0, 0),  # no ties: the best explained
-        ([5.0, 1.0, 3.0], [4.0, 2.0, 3.9], 1.0, 1),  # everything ties: the lowest loss (the paper's choice)
-        ([float("nan"), 2.0], [9.0, 1.0], 0.1, 1),  # a diverged hypothesis never wins
-    ],
-)
-def test_choose_hypothesis(losses: list[float], explained: list[float], tie: float, expected: int) -> None:
-    assert choose_hypothesis(losses, explained, tie) == expected
-
-
 def test_language_modality_uses_the_describer(map_dir: Path) -> None:
     q, _ = held_out_query()
     m = create_method("openreloc", refinement={"max_iterations": 5})
@@ -273,7 +259,9 @@ def test_a_restart_replaces_the_chosen_pose_only_with_a_lower_loss(map_dir: Path
         q
     )
     far = geometry.look_at([3.0, 3.0, 2.5], [6.0, 6.0, 2.5])  # sees none of the matched objects
-    monkeypatch.setattr(method_module, "orbit_starts", lambda T, pivot, degrees: [T_gt if start == "truth" else far])
+    monkeypatch.setattr(
+        hypotheses_module, "orbit_starts", lambda T, pivot, degrees: [T_gt if start == "truth" else far]
+    )
     res = localizer(map_dir, association=oracle, refinement={"max_iterations": 10}).localize(q)
     assert isinstance(plain, PoseEstimate) and isinstance(res, PoseEstimate)
     assert "restart" not in plain.diagnostics
@@ -284,34 +272,6 @@ def test_a_restart_replaces_the_chosen_pose_only_with_a_lower_loss(map_dir: Path
     else:
         assert not hop["won"] and hop["loss"] > 0.9 * plain.diagnostics["refine"]["loss"]
         np.testing.assert_array_equal(res.T_wc, plain.T_wc)
-
-
-@pytest.mark.parametrize(
-    "hop_losses, hop_outliers, wins",
-    [
-        ({1: 5.0, 2: 5.0, 3: 8.0}, [], True),
-        ({1: 5.0, 2: 5.0, 3: 100.0}, [3], False),  # lower only by leaving a third object out of its own mean
-        ({1: 9.5, 2: 9.5, 3: 9.5}, [], False),  # lower by less than the margin: the valley is flat
-    ],
-)
-def test_a_restart_is_judged_on_the_objects_the_pose_counted(
-    map_dir: Path, monkeypatch, hop_losses: dict, hop_outliers: list, wins: bool
-) -> None:
-    def result(losses: dict, outliers: list) -> RefineResult:
-        kept = [v for k, v in losses.items() if k not in outliers]
-        return RefineResult(np.eye(4), sum(kept) / len(kept), math.nan, losses, outliers)
-
-    before = result({1: 10.0, 2: 10.0, 3: 10.0}, [])
-    hop = result(hop_losses, hop_outliers)
-    monkeypatch.setattr(method_module, "refine_poses", lambda *args, **kwargs: [hop])
-    m = localizer(map_dir)
-    matches = [
-        Match(query=i, landmark=lid, visual_sim=1.0, text_sim=None, how="oracle") for i, lid in enumerate(m.ids[:3])
-    ]
-    objects = [QueryObject(mask=np.ones(HW, bool), box=np.array([0, 0, HW[1], HW[0]]), visual=np.zeros(3))] * 3
-    diag: dict = {}
-    chosen = m._hop(before, matches, [0, 1, 2], objects, np.eye(3), np.zeros(HW, bool), diag)
-    assert (chosen is hop) == wins == diag["restart"]["won"]
 
 
 def test_no_coarse_refines_only_the_uninformed_start(map_dir: Path) -> None:
@@ -397,18 +357,6 @@ def test_only_the_further_modes_that_render_closest_are_refined(
     assert ("screened" in res.diagnostics["verification"]) == render_and_compare
     if render_and_compare:
         assert list(res.diagnostics["verification"]["screened"]) == ["verified:2", "verified:3"]
-
-
-def test_union_of_match_sets_holds_each_pair_once() -> None:
-    from openreloc_bench.openreloc.method import _union
-
-    def match(q: int, lid: int) -> Match:
-        return Match(query=q, landmark=lid, visual_sim=0.5, text_sim=None, how="verified")
-
-    main = [match(0, 10), match(1, 11)]
-    union, sets = _union([main, main, [match(0, 12), match(1, 11)], [match(2, 10)]])
-    assert [(mt.query, mt.landmark) for mt in union] == [(0, 10), (1, 11), (0, 12), (2, 10)]
-    assert sets == [[0, 1], [0, 1], [2, 1], [3]]
 
 
 def test_text_cache_encodes_each_phrase_once() -> None:

@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from openreloc_bench.openreloc.mapping import FrameObservation
 from openreloc_bench.openreloc.reference_frames import (
     ReferenceFrameConfig,
     Sightings,
     landmark_sightings,
     select_reference_frames,
 )
+from openreloc_bench.reconstruction.observation import FrameObservation
 
 CFG = ReferenceFrameConfig(min_visibility=0.0, min_points=1)
 

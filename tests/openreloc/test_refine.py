@@ -8,14 +8,11 @@ import torch
 from scipy import ndimage
 
 from openreloc_bench import geometry
-from openreloc_bench.openreloc import refine
-from openreloc_bench.openreloc.icp_kernel import BIG
 from openreloc_bench.openreloc.refine import (
     RefineConfig,
     RefineTarget,
     backward_pixels,
     nearest_mask_pixels,
-    orbit_starts,
     refine_pose,
     refine_poses,
 )
@@ -208,99 +205,3 @@ def test_refinement_stops_once_the_best_hypothesis_has_settled() -> None:
 def test_huber_annealing_still_converges(delta_start: float) -> None:
     res = refine_pose(perturbed(1, 0.03, 0.15), K, targets_at(T_GT), RefineConfig(huber_delta_start=delta_start))
     assert res.reason is None and geometry.translation_error(T_GT, res.T_wc) < 0.1
-
-
-@pytest.mark.parametrize(
-    ("occlusion_aware", "refresh", "with_outlier", "padded"),
-    [(False, True, False, False), (True, True, False, False), (False, False, True, False), (False, True, False, True)],
-)
-def test_hand_written_gradient_equals_autograd(
-    occlusion_aware: bool, refresh: bool, with_outlier: bool, padded: bool
-) -> None:
-    """The compiled loss and its chain-rule gradient against autograd through a torch form of the same
-    loss, at poses where points fall outside masks, outside the image and (for the far start) behind the
-    camera; ``padded``: the hypotheses align target sets of different lengths."""
-    from openreloc_bench.openreloc.refine import _Problem, target_tables
-
-    _, _, inst = render(ROOM, K, T_GT, HW)
-    targets = targets_at(T_GT)
-    starts = [perturbed(0, 0.05, 0.2), perturbed(1, 0.1, 0.5), perturbed(2, 0.3, 2.5)]
-    cfg = RefineConfig(occlusion_aware=occlusion_aware)
-    n = len(targets)
-    sets = [list(range(n)), list(range(n - 2)), list(range(1, n))] if padded else [list(range(n))] * 3
-    problem = _Problem(starts, target_tables(targets, K, cfg, 0, inst > 0), cfg, sets)
-    rng = np.random.default_rng(3)
-    q = (np.c_[np.ones(3), rng.normal(0, 0.05, (3, 3))] * [[1.3], [0.8], [1.0]]).astype(np.float32)
-    t = rng.normal(0, 0.1, (3, 3)).astype(np.float32)
-    problem.evaluate(q, t, cfg.huber_delta)  # correspondences of this pose
-    t_moved = t + 0.02 if not refresh else t  # stale correspondences: held from the previous pose
-    coef = rng.uniform(0.2, 1.0, (3, problem.n_obj)).astype(np.float32)
-    if with_outlier:
-        coef[:, 0] = 0.0
-    obj, terms = problem.evaluate(q, t_moved, cfg.huber_delta, refresh=refresh)
-    g_q, g_t = problem.gradient(q, t_moved, terms, coef)
-    q_ref, t_ref = torch.tensor(q, requires_grad=True), torch.tensor(t_moved, requires_grad=True)
-    expected = reference_losses(problem, q_ref, t_ref, cfg.huber_delta)
-    (expected * torch.from_numpy(coef)).sum().backward()
-    assert np.isfinite(obj).all() and float(np.abs(g_t).max()) > 1.0
-    assert np.allclose(obj, expected.detach().numpy(), rtol=1e-4, atol=1e-3)
-    assert np.allclose(g_q, q_ref.grad.numpy(), rtol=1e-3, atol=1e-2 * float(q_ref.grad.abs().max()))
-    assert np.allclose(g_t, t_ref.grad.numpy(), rtol=1e-3, atol=1e-2 * float(t_ref.grad.abs().max()))
-
-
-def reference_losses(problem, q: torch.Tensor, t: torch.Tensor, delta: float) -> torch.Tensor:
-    """The dual-path loss of every (hypothesis, object) of ``problem`` as differentiable torch operations,
-    with the backward path's correspondences the compiled pass left in ``problem.nn_idx``."""
-    H, W, d = problem.H, problem.W, delta * problem.scale
-    fx, fy, cx, cy = problem.camera.tolist()
-    qn = q / q.norm(dim=-1, keepdim=True)
-    R = torch.einsum("bk,ijkl,bl->bij", qn, torch.from_numpy(refine._QUAT_FORMS), qn)
-    pc = torch.einsum("bopk,bkj->bopj", torch.from_numpy(problem.pts) - t[:, None, None, :], R)
-    front = torch.from_numpy(problem.pts_valid) & (pc[..., 2] > problem.cfg.min_depth)
-    z = torch.where(front, pc[..., 2], torch.ones_like(pc[..., 2]))
-    uv = torch.stack([fx * pc[..., 0] / z + cx, fy * pc[..., 1] / z + cy], dim=-1)
-    ui, vi = torch.round(uv[..., 0].detach()).long(), torch.round(uv[..., 1].detach()).long()
-    inside = front & (ui >= 0) & (ui < W) & (vi >= 0) & (vi < H)
-    flat = vi.clamp(0, H - 1) * W + ui.clamp(0, W - 1) + torch.from_numpy(problem.offset)[..., None]
-    row = torch.from_numpy(problem.pixel_table)[flat]
-    use = inside & (row[..., 3] > 0)
-
-    def huber(sq: torch.Tensor) -> torch.Tensor:
-        return torch.where(sq <= d * d, sq, 2.0 * d * torch.sqrt(sq.clamp_min(d * d)) - d * d)
-
-    fwd = (huber(((uv - row[..., :2]) * row[..., 2:3]).pow(2).sum(-1)) * use).sum(-1) / use.sum(-1).clamp_min(1)
-    absent = torch.full_like(uv, float(BIG))
-    nearest = torch.gather(
-        torch.where(front[..., None], uv, absent), 2, torch.from_numpy(problem.nn_idx)[..., None].expand(-1, -1, -1, 2)
-    )
-    valid = torch.from_numpy(problem.pix_valid)
-    bwd = (huber((nearest - torch.from_numpy(problem.pix)).pow(2).sum(-1)) * valid).sum(-1) / valid.sum(-1).clamp_min(1)
-    return torch.where(front.sum(-1) == 0, torch.full_like(fwd, 4.0 * d * max(H, W)), fwd + bwd)
-
-
-def test_quaternion_rotation_matches_scipy() -> None:
-    from scipy.spatial.transform import Rotation
-
-    from openreloc_bench.openreloc.refine import _quat_to_rotmat
-
-    q = np.random.default_rng(0).normal(size=(6, 4)).astype(np.float32)  # unnormalised on purpose
-    expected = Rotation.from_quat(q[:, [1, 2, 3, 0]]).as_matrix()  # scipy: (x, y, z, w)
-    assert np.allclose(_quat_to_rotmat(q), expected, atol=1e-6)
-
-
-@pytest.mark.parametrize("degrees", [3.0, 6.0])
-def test_orbit_starts_keep_the_pivot_in_place_and_turn_by_the_angle(degrees: float) -> None:
-    pivot = np.array([0.2, 0.8, 0.6])
-    uv0, _ = geometry.project(K, T_GT, pivot[None])
-    starts = orbit_starts(T_GT, pivot, degrees)
-    assert len(starts) == 4
-    for T in starts:
-        assert geometry.is_rigid(T)
-        uv, _ = geometry.project(K, T, pivot[None])
-        np.testing.assert_allclose(uv, uv0, atol=1e-6)
-        assert np.linalg.norm(T[:3, 3] - pivot) == pytest.approx(np.linalg.norm(T_GT[:3, 3] - pivot))
-        assert float(geometry.rotation_error(T_GT, T)) == pytest.approx(degrees, abs=1e-6)
-    # two about the world's vertical (the camera height stays), two about the camera's x axis (it does not)
-    heights = [T[2, 3] - T_GT[2, 3] for T in starts]
-    assert heights[0] == pytest.approx(0.0, abs=1e-9) and heights[1] == pytest.approx(0.0, abs=1e-9)
-    assert min(abs(heights[2]), abs(heights[3])) > 1e-3 and heights[2] * heights[3] < 0  # up, then down

@@ -6,15 +6,15 @@ import numpy as np
 import pytest
 
 from openreloc_bench import geometry
-from openreloc_bench.openreloc.map import ReferenceFrame
-from openreloc_bench.openreloc.retrieval import (
+from openreloc_bench.openreloc.coarse_prior import (
     CoarseConfig,
     diou_distance,
     place_landmarks,
     pnp_prior,
-    retrieve_reference,
+    rank_reference_frames,
     solve_pnp,
 )
+from openreloc_bench.openreloc.map import ReferenceFrame
 
 
 @pytest.mark.parametrize(
@@ -40,7 +40,7 @@ def frame(index: int, boxes: dict[int, list[float]], vis: dict[int, float] | Non
     return ReferenceFrame(index, np.eye(4) * 1.0, {k: np.array(v, np.float32) for k, v in boxes.items()}, vis or {})
 
 
-def test_retrieval_prefers_most_shared_then_lowest_diou() -> None:
+def test_the_prior_is_the_most_shared_then_lowest_diou_frame() -> None:
     query = {1: np.array([0, 0, 10, 10.0]), 2: np.array([20, 0, 30, 10.0]), 3: np.array([40, 0, 50, 10.0])}
     frames = [
         frame(0, {1: [0, 0, 10, 10], 2: [20, 0, 30, 10]}),  # perfect boxes but only 2 shared
@@ -48,16 +48,16 @@ def test_retrieval_prefers_most_shared_then_lowest_diou() -> None:
         frame(2, {1: [1, 0, 11, 10], 2: [21, 0, 31, 10], 3: [41, 0, 51, 10]}, {1: 0.1, 2: 0.1, 3: 0.1}),
         frame(3, {7: [0, 0, 10, 10]}),
     ]
-    r = retrieve_reference(query, frames, "diou")
+    r = rank_reference_frames(query, frames, "diou")
     assert r is not None and r.frame.index == 2 and r.shared == [1, 2, 3]
     assert [c[0] for c in r.candidates] == [2, 1]
-    v = retrieve_reference(query, frames, "visibility")
+    v = rank_reference_frames(query, frames, "visibility")
     assert v is not None and v.frame.index == 1 and v.score == pytest.approx(0.2)
 
 
 def test_no_shared_landmark_gives_none() -> None:
-    assert retrieve_reference({5: np.array([0, 0, 1, 1.0])}, [frame(0, {1: [0, 0, 1, 1]})]) is None
-    assert retrieve_reference({5: np.array([0, 0, 1, 1.0])}, []) is None
+    assert rank_reference_frames({5: np.array([0, 0, 1, 1.0])}, [frame(0, {1: [0, 0, 1, 1]})]) is None
+    assert rank_reference_frames({5: np.array([0, 0, 1, 1.0])}, []) is None
 
 
 def test_ranked_lists_every_sharing_frame_most_shared_first() -> None:
@@ -68,7 +68,7 @@ def test_ranked_lists_every_sharing_frame_most_shared_first() -> None:
         frame(2, {1: [1, 0, 11, 10], 2: [21, 0, 31, 10], 3: [41, 0, 51, 10]}),
         frame(3, {7: [0, 0, 10, 10]}),
     ]
-    r = retrieve_reference(query, frames, "diou")
+    r = rank_reference_frames(query, frames, "diou")
     assert r is not None and [f.index for f in r.ranked] == [2, 1, 0] and r.ranked[0] is r.frame
 
 

@@ -81,8 +81,8 @@ def diou_distance(box_a: np.ndarray, box_b: np.ndarray) -> np.ndarray:
 
 
 @dataclass
-class Retrieval:
-    """The chosen reference frame and how it was chosen."""
+class CoarsePrior:
+    """The coarse prior (the chosen reference frame) and how it was chosen."""
 
     frame: ReferenceFrame
     shared: list[int]
@@ -96,9 +96,9 @@ class Retrieval:
     """Every frame sharing a matched landmark: most shared first, then by score (``ranked[0] is frame``)."""
 
 
-def retrieve_reference(
+def rank_reference_frames(
     query_boxes: dict[int, np.ndarray], frames: list[ReferenceFrame], ranking: Ranking = "diou"
-) -> Retrieval | None:
+) -> CoarsePrior | None:
     """Best reference frame for the matched landmarks ``{landmark id: query box}``; None if no frame
     shares a landmark with the query."""
     if ranking not in ("diou", "visibility"):
@@ -121,7 +121,7 @@ def retrieve_reference(
     scored.sort(key=lambda s: s[:3])  # most shared, then score; ties: earlier frame (deterministic)
     sign = 1.0 if ranking == "diou" else -1.0
     _, key, _, frame, ids = scored[0]
-    return Retrieval(
+    return CoarsePrior(
         frame=frame,
         shared=ids,
         score=sign * key,

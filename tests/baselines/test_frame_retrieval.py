@@ -3,7 +3,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from baselines.retrieval import (
+from baselines.frame_retrieval import (
     Vlad,
     VladConfig,
     VocabularyConfig,

@@ -3,11 +3,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from openreloc_bench.openreloc import affinity_grouping as A
-from openreloc_bench.openreloc import mapping as M
 from openreloc_bench.openreloc.instance_eval import instance_report
+from openreloc_bench.reconstruction import affinity_grouping as A
+from openreloc_bench.reconstruction.fusion import FusionConfig, fuse_tsdf
+from openreloc_bench.reconstruction.lifting import VotingConfig, instance_sets, lift_by_voting
+from openreloc_bench.reconstruction.observation import ObservationConfig, observe
 from tests.openreloc.boxworld import NoisyMaskSegmenter, boxworld_sequence
-from tests.openreloc.test_instance_repair import observation
+from tests.reconstruction.test_instance_repair import observation
 
 STEP = 0.02  # the point grid of the synthetic patches (m)
 
@@ -102,17 +104,17 @@ def test_config_refuses_out_of_range_values(bad: dict) -> None:
 def dense_room(tmp_path_factory: pytest.TempPathFactory) -> tuple:
     """32 views (16 leave parts of the floor that no view sees side by side: those stay apart)."""
     seq = boxworld_sequence(tmp_path_factory.mktemp("room"), n_frames=32, hw=(96, 128))
-    return seq, M.fuse_tsdf(seq, M.FusionConfig(voxel_size=0.05), progress=False)
+    return seq, fuse_tsdf(seq, FusionConfig(voxel_size=0.05), progress=False)
 
 
 @pytest.mark.parametrize(("split_prob", "precision", "recall"), [(0.0, 0.85, 0.95), (0.3, 0.4, 0.85)])
 def test_noisy_masks_of_a_rendered_room_become_its_objects(dense_room, split_prob, precision, recall) -> None:
     seq, rec = dense_room
     segmenter = NoisyMaskSegmenter(split_prob=split_prob)
-    obs = M.observe(seq, rec.points, rec.usable, M.ObservationConfig(), segmenter, False)
-    truth = M.instance_sets(M.lift_by_voting(len(rec.points), obs, M.VotingConfig()), 20)
+    obs = observe(seq, rec.points, rec.usable, ObservationConfig(), segmenter, False)
+    truth = instance_sets(lift_by_voting(len(rec.points), obs, VotingConfig()), 20)
     labels = A.lift_by_affinity(rec.points, obs, A.AffinityConfig(min_region_area=0.05), spacing=0.05)
-    q = instance_report(rec.points, M.instance_sets(labels, 20), truth)
+    q = instance_report(rec.points, instance_sets(labels, 20), truth)
     assert q["recall"] >= recall and q["precision"] >= precision, q
 
 

@@ -1,6 +1,6 @@
 """Grouping the scene points into instances by how often the views' masks hold neighbours together.
 
-The predicted track's alternative to view-consensus clustering (:func:`mapping.lift_by_clustering`),
+The predicted track's alternative to view-consensus clustering (:func:`.lifting.lift_by_clustering`),
 in the spirit of superpoint methods (SAI3D, Open3DIS) but with the scene's own points as atoms:
 
 1. **Edge evidence** (:func:`edge_evidence`): for every pair of neighbouring scene points, count the
@@ -41,7 +41,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from openreloc_bench.config import check_ranges
-from openreloc_bench.openreloc.plane_split import (
+from openreloc_bench.reconstruction.plane_split import (
     PlaneSplitConfig,
     SupportSplitConfig,
     split_off_planes,
@@ -108,7 +108,7 @@ def lift_by_affinity(points: np.ndarray, obs: list, cfg: AffinityConfig, spacing
 def edge_evidence(n_points: int, obs: list, edges: np.ndarray, min_mask_points: int) -> tuple[np.ndarray, np.ndarray]:
     """Per edge (pair of point indices): frames seeing both ends, and frames where one mask holds both.
 
-    ``obs``: :class:`mapping.FrameObservation` with the segmenter's masks. A seen point outside every
+    ``obs``: :class:`.observation.FrameObservation` with the segmenter's masks. A seen point outside every
     (large enough) mask is seen but held by no mask: it counts against its edges."""
     both = np.zeros(len(edges), np.int32)
     same = np.zeros(len(edges), np.int32)

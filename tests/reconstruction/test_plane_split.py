@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from openreloc_bench.openreloc import affinity_grouping as A
-from openreloc_bench.openreloc import mapping as M
-from openreloc_bench.openreloc.plane_split import (
+from openreloc_bench.reconstruction import affinity_grouping as A
+from openreloc_bench.reconstruction.observation import FrameObservation
+from openreloc_bench.reconstruction.plane_split import (
     PlaneSplitConfig,
     SupportSplitConfig,
     split_off_planes,
@@ -134,7 +134,7 @@ def test_a_region_without_a_large_enough_top_keeps_what_stands_on_it() -> None:
 def test_affinity_grouping_splits_what_every_view_merges_with_the_floor() -> None:
     points, truth = floor_with_box(3.0, box=0.2)
     every = np.arange(len(points), dtype=np.int32)
-    obs = [M.FrameObservation(0, every, np.zeros((len(points), 2), np.int16), masks=[every])] * 4
+    obs = [FrameObservation(0, every, np.zeros((len(points), 2), np.int16), masks=[every])] * 4
     geometry_off = A.AffinityConfig(planes=PlaneSplitConfig(enabled=False), supports=SupportSplitConfig(enabled=False))
     assert len(np.unique(A.lift_by_affinity(points, obs, geometry_off, STEP))) == 1
     for cfg in (A.AffinityConfig(), A.AffinityConfig(planes=PlaneSplitConfig(enabled=False))):

@@ -37,7 +37,7 @@ class ViewEvidence:
 
 def view_evidence(n_points: int, obs: list, min_mask_points: int) -> ViewEvidence:
     """Incidences of the observations' masks (those with at least ``min_mask_points`` seen points) and of
-    what each observation sees (``obs``: :class:`mapping.FrameObservation`)."""
+    what each observation sees (``obs``: :class:`.observation.FrameObservation`)."""
     rows, cols, frame_of = [], [], []
     for f, o in enumerate(obs):
         for m in o.masks:

@@ -1,6 +1,6 @@
 """Repairing the predicted track's 3D instances with every view and the fused geometry.
 
-View-consensus clustering (:func:`mapping.lift_by_clustering`) keeps only what a segmenter's masks
+View-consensus clustering (:func:`.lifting.lift_by_clustering`) keeps only what a segmenter's masks
 agree on across views. On a learned segmenter's masks that leaves objects in pure but partial pieces
 (a desk as its top and legs, a wall cut at a doorway) and a sixth of the object points unassigned:
 on the validation apartments most clusters are pieces of one object. Two optional steps repair it
@@ -16,8 +16,8 @@ on the validation apartments most clusters are pieces of one object. Two optiona
    segmenter's boundary strength along the border averaged over every view, the border's shape
    (normals, convex or concave), colour, and the two instances' sizes. The classifier is a logistic
    regression trained on training-range scenes, where the true instances are free
-   (:mod:`merger_training`, ``train-merger``); rounds of merging and filling repeat until nothing
-   changes. Off by default: on the validation apartments it raised instance precision but joined
+   (:mod:`openreloc_bench.openreloc.merger_training`, ``train-merger``); rounds of merging and filling
+   repeat until nothing changes. Off by default: on the validation apartments it raised instance precision but joined
    objects that localization needs apart (``docs/experiments.md``).
 
 Measured with ``openreloc-bench diagnose``: with either grouping, objects merged into a neighbour
@@ -40,8 +40,8 @@ from scipy.spatial import cKDTree
 from openreloc_bench.config import check_ranges
 from openreloc_bench.data import mapfile
 from openreloc_bench.errors import DataError
-from openreloc_bench.openreloc.incidence import ViewEvidence, incidence, view_evidence
-from openreloc_bench.openreloc.plane_split import point_normals
+from openreloc_bench.reconstruction.incidence import ViewEvidence, incidence, view_evidence
+from openreloc_bench.reconstruction.plane_split import point_normals
 
 MERGER_FORMAT = ("openreloc-merger", 1)
 MERGER_FILE = "merger.json"

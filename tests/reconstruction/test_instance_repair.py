@@ -8,12 +8,13 @@ import pytest
 
 from openreloc_bench.data.scene import Scene
 from openreloc_bench.errors import DataError
-from openreloc_bench.openreloc import instance_repair as R
-from openreloc_bench.openreloc import mapping as M
 from openreloc_bench.openreloc.build import MappingConfig, lift_instances
-from openreloc_bench.openreloc.incidence import view_evidence
-from openreloc_bench.openreloc.instance_eval import instance_report
+from openreloc_bench.openreloc.instance_eval import box_point_labels, instance_report
 from openreloc_bench.openreloc.merger_training import dominant_objects, scene_examples
+from openreloc_bench.reconstruction import instance_repair as R
+from openreloc_bench.reconstruction.incidence import view_evidence
+from openreloc_bench.reconstruction.lifting import instance_sets
+from openreloc_bench.reconstruction.observation import FrameObservation
 from openreloc_bench.vision import create_segmenter
 from tests.openreloc.boxworld import ROOM, Box, write_boxworld
 
@@ -27,9 +28,9 @@ PARTS = [b for b in ROOM if b.id != 14] + [
 ]
 
 
-def observation(point_idx: list[int], masks: list[list[int]]) -> M.FrameObservation:
+def observation(point_idx: list[int], masks: list[list[int]]) -> FrameObservation:
     idx = np.array(point_idx, np.int32)
-    return M.FrameObservation(
+    return FrameObservation(
         index=0,
         point_idx=idx,
         uv=np.zeros((len(idx), 2), np.int16),
@@ -111,15 +112,15 @@ def test_merge_joins_the_parts_of_an_object_and_nothing_else(shelf_in_parts: Pat
     cfg = clustered()
     inst = lift_instances(seq, cfg, create_segmenter("gt", min_area=1), progress=False, boundaries=True)
     points, labels = inst.reconstruction.points, inst.labels
-    truth = M.instance_sets(M.box_point_labels(points, Scene(shelf_in_parts).objects, 0.03), 20)
+    truth = instance_sets(box_point_labels(points, Scene(shelf_in_parts).objects, 0.03), 20)
     before = instance_report(points, inst.sets, truth)
     views = view_evidence(len(points), inst.observations, 10)
     attrs = R.point_attributes(points, inst.observations, seq.poses[:, :3, 3])
     merged = R.merge_instances(points, labels, attrs, views, no_crease_classifier(), R.RepairConfig(fill=False))
-    after = instance_report(points, M.instance_sets(merged, 20), truth)
+    after = instance_report(points, instance_sets(merged, 20), truth)
     assert before["objects"]["split"]["large"] == 1 and after["objects"]["split"]["large"] == 0
     assert after["n_pred"] == before["n_pred"] - 2 and after["recall"] > before["recall"]
-    owner = dominant_objects(merged, M.box_point_labels(points, Scene(shelf_in_parts).objects, 0.03))
+    owner = dominant_objects(merged, box_point_labels(points, Scene(shelf_in_parts).objects, 0.03))
     assert sum(o == 14 for o, _ in owner.values()) == 1
 
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import logging
 import multiprocessing as mp
+import os
 import shutil
 from concurrent.futures import Future, ProcessPoolExecutor, ThreadPoolExecutor, as_completed
 from dataclasses import asdict
@@ -27,8 +28,8 @@ from generators.trajectories import mapping_path, sample_near_queries, sample_qu
 from generators.variants import LIGHT_SPLITS, Lighting, light_variants, sample_displacements
 from openreloc_bench import config, geometry
 from openreloc_bench.data import io, paths
-from openreloc_bench.data.scene import DATA_VERSION, SceneWriter, frame_id
-from openreloc_bench.errors import ConfigError, DataError
+from openreloc_bench.data.scene import DATA_VERSION, SceneWriter, foreign_files, frame_id
+from openreloc_bench.errors import ConfigError, DataError, exit_quietly_on_interrupt
 
 log = logging.getLogger(__name__)
 
@@ -110,21 +111,47 @@ def render_split(
 def generate_scene(spec: SceneSpec, out_dir: Path | str, resume: bool = False, progress: bool = True) -> Path:
     """Generate ``out_dir/<spec.name>/`` (all splits and variants); returns the scene directory.
 
-    Without ``resume`` an existing generated scene of the same name is replaced; with it, finished
-    frames are kept (the spec hash must match).
+    Without ``resume`` an existing generated scene of the same name is regenerated beside it and
+    swapped in when complete, so a failed or interrupted run leaves it as it was; with ``resume``,
+    finished frames are kept (the spec hash must match). A scene holding files the generator did not
+    write is never replaced.
     """
-    root = Path(out_dir) / spec.name
-    if root.exists():
-        if not (root / "scene.json").exists() and any(root.iterdir()):
-            raise ConfigError(f"{root}: exists and is not a generated scene; refusing to overwrite")
-        if resume and generated_spec_hash(root) not in (None, spec_hash(spec)):
-            raise ConfigError(
-                f"{root}: was generated from a different spec; cannot resume (delete it or drop --resume)"
-            )
+    target = Path(out_dir) / spec.name
+    if target.exists():
+        check_replaceable(target, spec, resume)
         if not resume:
-            shutil.rmtree(root)
-        else:
-            io.remove_stray_temps(root)
+            stage = target.parent / f".{spec.name}.regenerating"
+            shutil.rmtree(stage, ignore_errors=True)  # left by a killed run; the caller holds the folder's lock
+            try:
+                write_scene(spec, stage, resume=False, progress=progress)
+            except BaseException:
+                shutil.rmtree(stage, ignore_errors=True)
+                raise
+            replace_directory(stage, target)
+            return target
+        io.remove_stray_temps(target)
+    return write_scene(spec, target, resume, progress)
+
+
+def check_replaceable(target: Path, spec: SceneSpec, resume: bool) -> None:
+    """ConfigError unless the existing folder ``target`` may be regenerated (or, with ``resume``, resumed)
+    as ``spec``'s scene: it must be a generated scene (of this spec, to resume) holding only files the
+    generator writes, for a regeneration replaces it whole."""
+    if not (target / "scene.json").exists() and any(target.iterdir()):
+        raise ConfigError(f"{target}: exists and is not a generated scene; refusing to overwrite")
+    if resume and generated_spec_hash(target) not in (None, spec_hash(spec)):
+        raise ConfigError(f"{target}: was generated from a different spec; cannot resume (delete it or drop --resume)")
+    foreign = [] if resume else foreign_files(target)
+    if foreign:
+        raise ConfigError(
+            f"{target}: holds {foreign[0].relative_to(target)}"
+            + (f" and {len(foreign) - 1} more" if len(foreign) > 1 else "")
+            + ", which the generator did not write; move them out to regenerate the scene, or use --resume"
+        )
+
+
+def write_scene(spec: SceneSpec, root: Path, resume: bool, progress: bool) -> Path:
+    """Render every split and variant of ``spec`` into ``root`` and measure its difficulty."""
     layout = build_layout(spec)
     K = geometry.intrinsics_from_fov(spec.width, spec.height, spec.fov_y)
     writer = SceneWriter(root)
@@ -184,6 +211,16 @@ def generate_scene(spec: SceneSpec, out_dir: Path | str, resume: bool = False, p
     return root
 
 
+def replace_directory(new: Path, target: Path) -> None:
+    """Put the complete folder ``new`` in place of ``target``: the old one is set aside first and
+    removed only once the new one stands in its place."""
+    old = target.parent / f".{target.name}.replaced"
+    shutil.rmtree(old, ignore_errors=True)
+    os.rename(target, old)
+    os.rename(new, target)
+    shutil.rmtree(old)
+
+
 def read_instances(split_dir: Path, n: int) -> list[np.ndarray]:
     """The instance images of a rendered split, in frame order."""
     return [io.read_instance(split_dir / "instance" / f"{frame_id(i)}.png") for i in range(n)]
@@ -215,7 +252,9 @@ def generate_scenes(
     """
     done: dict[str, Path] = {}
     ctx = mp.get_context("spawn")
-    with ProcessPoolExecutor(max_workers=max(1, workers), mp_context=ctx) as pool:
+    with ProcessPoolExecutor(
+        max_workers=max(1, workers), mp_context=ctx, initializer=exit_quietly_on_interrupt
+    ) as pool:
         futures = {pool.submit(_worker, config.to_dict(s), str(out_dir), resume): s.name for s in specs}
         for fut in tqdm(as_completed(futures), total=len(futures), desc=desc, unit="scene"):
             done[futures[fut]] = Path(fut.result())
@@ -248,6 +287,8 @@ def generate_suite(
                     f"{out_dir / s.name}: was generated from another spec (or generator version) than "
                     f"{suite.name}'s scene '{s.name}'; delete it to regenerate it, or choose another --out"
                 )
+            if (out_dir / s.name).exists():
+                check_replaceable(out_dir / s.name, s, resume)
         if workers <= 1 or len(specs) == 1:
             return [
                 generate_scene(s, out_dir, resume=resume, progress=True)

@@ -14,6 +14,7 @@ import importlib
 import logging
 import os
 import pkgutil
+import signal
 import sys
 from types import ModuleType
 
@@ -87,9 +88,10 @@ def main(argv: list[str] | None = None) -> int:
     except OpenRelocError as e:
         print(f"openreloc-bench {args.command}: error: {e}", file=sys.stderr)
         return 2
-    except BrokenPipeError:  # the reader went away (`| head`): stop quietly, as other command-line tools do
+    except BrokenPipeError:  # the reader went away (`| head`): the work stopped unfinished, so not 0
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no second error when Python flushes
-        return 0
+        print(f"openreloc-bench {args.command}: stopped: its output was closed (by `| head`?)", file=sys.stderr)
+        return 128 + signal.SIGPIPE
     except OSError as e:  # the system refused a file operation: read-only file system, permissions, disk full
         if args.verbose:
             raise
@@ -97,7 +99,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"openreloc-bench {args.command}: error: {e.strerror or e}{where}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print(f"openreloc-bench {args.command}: interrupted", file=sys.stderr)
+        again = "; rerun with --resume to go on" if hasattr(args, "resume") else ""
+        print(f"openreloc-bench {args.command}: interrupted{again}", file=sys.stderr)
         return 130
 
 

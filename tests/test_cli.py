@@ -45,3 +45,16 @@ def test_other_libraries_info_lines_show_only_with_verbose():
     assert "OpenGL_accelerate" not in quiet and "SentenceTransformer" not in quiet
     assert "INFO OpenGL.acceleratesupport: No OpenGL_accelerate" in verbose
     assert "SentenceTransformer" in verbose and "our detail" in verbose
+
+
+def test_a_closed_output_pipe_ends_non_zero_in_one_line() -> None:
+    """`openreloc-bench ... | head -1`: the command stops when its reader goes away, and says so."""
+    proc = subprocess.Popen(
+        [sys.executable, "-c", "from openreloc_bench.cli import main; import sys; sys.exit(main(['methods']))"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    proc.stdout.close()  # the reader is gone before the first line
+    err = proc.stderr.read()
+    assert proc.wait() == 141 and err == "openreloc-bench methods: stopped: its output was closed (by `| head`?)\n", err

@@ -1,4 +1,4 @@
-"""Run a reference agent in one of the gymnasium environments and print its success rate and SPL.
+"""Run a reference agent in one of the gymnasium environments and print its success rate (and SPL for ObjectGoal).
 
 ``random`` acts uniformly at random; ``scripted`` is the task's heuristic (ActiveReloc: look around
 and localize once two answers agree; ObjectGoal: follow the shortest path and stop facing the goal).
@@ -21,11 +21,11 @@ import pandas as pd
 
 from openreloc_bench import config
 from openreloc_bench.commands.options import add_plugin_argument
-from openreloc_bench.data import io
+from openreloc_bench.data import io, paths
 from openreloc_bench.errors import ConfigError
 
 NAME = "agent"
-HELP = "run a random or scripted agent in a gymnasium environment; print success and SPL"
+HELP = "run a random or scripted agent in a gymnasium environment; print success (and SPL)"
 ORDER = 70
 
 
@@ -62,6 +62,10 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError(f"unknown environment '{args.env_id}' (known: {', '.join(ENVIRONMENTS)})")
     if args.episodes < 1:
         raise ConfigError("--episodes must be at least 1")
+    if args.seed < 0:
+        raise ConfigError(f"--seed must be at least 0 (gymnasium seeds are non-negative), got {args.seed}")
+    if args.out:
+        paths.check_writable_file(args.out, "--out")
     options = config.parse_overrides(args.overrides)
     for key in ("scene", "suite", "method"):
         if getattr(args, key) is not None:

@@ -44,8 +44,6 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError("--splits names the query splits to list (the mapping split is the model)")
     scene = Scene(args.scene)
     out = paths.check_output(args.out, [scene.root], "--out")
-    if out.exists() and any(out.iterdir()):
-        raise ConfigError(f"--out {args.out} is not empty; exporting writes a new directory")
     mapping = scene.sequence("mapping")
     if not mapping.has_depth:
         raise DataError(scene.root / "mapping" / "depth", "mapping frames without depth: no 3D points to export")
@@ -54,9 +52,11 @@ def run(args: argparse.Namespace) -> int:
         if split not in scene.splits():
             raise DataError(scene.root, f"scene has no split '{split}' (available: {', '.join(scene.splits())})")
         queries.append(scene.sequence(split))
-    counts = colmap.write_model(mapping, out / "sparse", args.voxel, args.pixel_step)
+    not_empty = f"--out {args.out} is not empty; exporting writes a new directory"
+    with paths.new_directory(out, "openreloc-bench export", not_empty) as stage:
+        counts = colmap.write_model(mapping, stage / "sparse", args.voxel, args.pixel_step)
+        io.atomic_write_text(stage / "queries_with_intrinsics.txt", colmap.query_list(queries))
     query_file = out / "queries_with_intrinsics.txt"
-    io.atomic_write_text(query_file, colmap.query_list(queries))
     print(
         f"{out / 'sparse'}: {counts['images']} images, {counts['points']} points, {counts['observations']} "
         f"observations; {query_file}: {sum(len(q) for q in queries)} queries (image directory: {scene.root})"

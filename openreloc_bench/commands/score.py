@@ -17,17 +17,17 @@ from pathlib import Path
 
 import pandas as pd
 
-from openreloc_bench.commands.options import add_track_argument
 from openreloc_bench.data import paths
 from openreloc_bench.data.results import NAME_STYLES
 from openreloc_bench.errors import ConfigError
 from openreloc_bench.harness import score, tables
 from openreloc_bench.harness.suites import suite_scene_names
-from openreloc_bench.methods import MASK_FREE, TRACKS
+from openreloc_bench.methods import DEFAULT_TRACK, MASK_FREE, TRACKS
 
 NAME = "score"
 HELP = "score externally produced pose files against a dataset"
 ORDER = 45
+SUBMISSION_TRACKS = (*TRACKS, MASK_FREE)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -44,11 +44,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         choices=NAME_STYLES,
         help="how the files name queries: benchmark (query/000012) or hloc (query/color/000012.png)",
     )
-    add_track_argument(
-        p,
-        "track the submission was produced in; mask-free: by a method that reads no masks (its rows stand "
-        "in both tracks' tables)",
-        (*TRACKS, MASK_FREE),
+    p.add_argument(
+        "--track",
+        choices=SUBMISSION_TRACKS,
+        help="track the submission was produced in; mask-free: by a method that reads no masks (its rows stand "
+        f"in both tracks' tables) (default: the track the pose files' headers record, else {DEFAULT_TRACK})",
     )
     p.add_argument(
         "--out",
@@ -68,9 +68,8 @@ def run(args: argparse.Namespace) -> int:
     name = args.submission.resolve().name
     out = args.out or Path(f"{name}-scores")
     paths.check_output(out, [args.submission, *(args.data / s for s in scenes)], "--out")
-    queries = score.score_submission(
-        args.submission, args.data, scenes, splits, args.method or name, args.track, args.names
-    )
+    track = score.submission_track(args.submission, scenes, args.track, SUBMISSION_TRACKS)
+    queries = score.score_submission(args.submission, args.data, scenes, splits, args.method or name, track, args.names)
     maps = pd.DataFrame(columns=["map_hash", "scene", "map_mb", "mapping_time_s"])
     _, suite, _ = tables.write_tables(out / "tables", queries, maps)
     missing = queries[queries["reason"] == "missing"]

@@ -4,8 +4,9 @@ The converted scene has a ``mapping`` and a ``query`` split made by the paper's 
 (mapping = frames 0, 20, 40...; query = 10, 30, 50...), depth as uint16 millimetres, colour at the
 depth resolution with the intrinsics rescaled to it, ScanNet's ``instance-filt`` masks as instance
 images when the export has them, and, when an aggregation file is found, an ``objects.json`` with
-each instance's label and a box fitted to its masked depth. ``scene.json`` is written last: a scene
-directory without it is an interrupted import. ``source_frames.txt`` maps each frame name to the
+each instance's label and a box fitted to its masked depth. The scene is written beside ``--out`` and
+takes its place when complete (a failed import leaves no partial scene; two imports into one ``--out``
+cannot both succeed). ``source_frames.txt`` maps each frame name to the
 frame of the recording it came from (ScanNet frame number, TUM colour timestamp).
 """
 
@@ -115,16 +116,27 @@ def _write_scene(
     if stride < 2 or not 0 < offset < stride:
         raise ConfigError(f"need --stride >= 2 and 0 < --offset < --stride, got stride {stride}, offset {offset}")
     out = paths.check_output(out, inputs, "--out")
-    if out.exists() and any(out.iterdir()):
-        raise ConfigError(
-            f"--out {out} is not empty; converting writes a new scene directory (one without scene.json is "
-            "an interrupted import: remove it and import again)"
-        )
     mapping, query = stride_split(seq, stride, offset)
     for split in (mapping, query):
         if not len(split):
             raise DataError(inputs[0], f"no frame for the '{split.split}' split (stride {stride}, offset {offset})")
-    writer = SceneWriter(out)
+    not_empty = f"--out {out} is not empty; converting writes a new scene directory"
+    source = {**source, "stride": stride, "offset": offset, "converter_version": CONVERTER_VERSION}
+    with paths.new_directory(out, "openreloc-bench import", not_empty) as stage:
+        info, n_objects = _write_frames(SceneWriter(stage), seq, mapping, query, source, labels, source_ids)
+    return ImportReport(out, dict(info["splits"]), dict(seq.skipped), n_objects)
+
+
+def _write_frames(
+    writer: SceneWriter,
+    seq: SceneSequence,
+    mapping: SceneSequence,
+    query: SceneSequence,
+    source: dict[str, Any],
+    labels: dict[int, str] | None,
+    source_ids: list[str] | None,
+) -> tuple[dict[str, Any], int]:
+    """Write the converted scene through ``writer``; its ``scene.json`` info and number of objects."""
     points: dict[int, list[np.ndarray]] = defaultdict(list)
     names = []
     with tqdm(total=len(mapping) + len(query), desc="import", unit="frame") as bar:
@@ -142,15 +154,15 @@ def _write_scene(
     objects = _objects(labels, points) if labels is not None else []
     if labels is not None:
         writer.write_objects(objects)
-    io.atomic_write_text(out / "source_frames.txt", "# name source_frame\n" + "\n".join(names) + "\n")
+    io.atomic_write_text(writer.root / "source_frames.txt", "# name source_frame\n" + "\n".join(names) + "\n")
     info = {
-        "source": {**source, "stride": stride, "offset": offset, "converter_version": CONVERTER_VERSION},
+        "source": source,
         "intrinsics": {"width": seq.width, "height": seq.height, "K": np.asarray(seq.K).tolist()},
         "splits": {"mapping": len(mapping), "query": len(query)},
         "skipped": seq.skipped,
     }
     writer.write_scene_info(info)
-    return ImportReport(out, dict(info["splits"]), dict(seq.skipped), len(objects))
+    return info, len(objects)
 
 
 def _orthonormal(T_wc: np.ndarray) -> np.ndarray:

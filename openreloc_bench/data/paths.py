@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import fcntl
 import os
+import shutil
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -17,6 +18,9 @@ from pathlib import Path
 from openreloc_bench.errors import ConfigError
 
 LOCK_NAME = ".openreloc-bench.lock"
+OWNED_FOLDERS = {"scene.json": "scene", "manifest.json": "map"}
+"""Files that mark a folder as a scene or a map: no output is written inside one, whichever scene or
+map a command reads (a preview of one scene once overwrote another scene's frame)."""
 
 
 def plain_name(name: str, what: str) -> str:
@@ -33,11 +37,16 @@ def overlaps(a: Path, b: Path) -> bool:
 
 
 def check_output(output: Path, inputs: Iterable[Path], what: str) -> Path:
-    """Resolve ``output`` and refuse it when it equals, contains or lies inside any of ``inputs``."""
+    """Resolve ``output`` and refuse it when it equals, contains or lies inside any of ``inputs``, or
+    lies inside any scene or map (:data:`OWNED_FOLDERS`)."""
     out = Path(output).resolve()
     for src in inputs:
         if overlaps(out, src):
             raise ConfigError(f"{what} {output} overlaps the input {src}: choose a path outside it")
+    for folder in out.parents:
+        for marker, kind in OWNED_FOLDERS.items():
+            if (folder / marker).is_file():
+                raise ConfigError(f"{what} {output} lies inside the {kind} {folder}: choose a path outside it")
     return out
 
 
@@ -57,6 +66,22 @@ def check_output_file(output: Path, inputs: Iterable[Path], what: str, suffix: s
     if suffix and Path(output).suffix.lower() != suffix:
         raise ConfigError(f"{what} {output} must end in {suffix}")
     return check_output(output, inputs, what)
+
+
+def check_writable_file(output: Path, what: str) -> Path:
+    """Refuse a file path that cannot be written (no such folder, not writable) before any work starts,
+    so that a long run does not lose its results at the end."""
+    out = Path(output)
+    if out.is_dir():
+        raise ConfigError(f"{what} {output} is a directory; give a file path")
+    folder = out.resolve().parent
+    while not folder.exists():
+        folder = folder.parent
+    if not folder.is_dir() or not os.access(folder, os.W_OK | os.X_OK):
+        raise ConfigError(f"{what} {output}: cannot write in {folder}")
+    if out.exists() and not os.access(out, os.W_OK):
+        raise ConfigError(f"{what} {output} is not writable")
+    return out
 
 
 @contextmanager
@@ -92,3 +117,28 @@ def directory_lock(directory: Path, what: str, in_directory: bool = True) -> Ite
         yield
     finally:
         os.close(fd)
+
+
+@contextmanager
+def new_directory(out: Path, what: str, not_empty: str) -> Iterator[Path]:
+    """Write the new directory ``out`` (absent or empty) through a hidden sibling, which takes its place
+    only once complete: a failed or interrupted run leaves no partial ``out``. ``out`` is locked
+    meanwhile, so of two runs into it the second fails at once; ``not_empty`` is the one-line error for
+    an ``out`` that holds files."""
+    out = Path(out)
+    created = not out.exists()
+    with directory_lock(out, what, in_directory=False):
+        if any(out.iterdir()):
+            raise ConfigError(not_empty)
+        stage = out.parent / f".{out.name}.partial-{os.getpid()}"
+        shutil.rmtree(stage, ignore_errors=True)
+        stage.mkdir()
+        try:
+            yield stage
+            os.rmdir(out)  # still empty: nobody else writes here while we hold the lock
+            os.rename(stage, out)
+        except BaseException:
+            shutil.rmtree(stage, ignore_errors=True)
+            if created and out.is_dir() and not any(out.iterdir()):
+                out.rmdir()
+            raise

@@ -43,6 +43,23 @@ def read_results(path: Path | str) -> dict[str, np.ndarray]:
     return _read_pose_lines(path, confidence=False, names="benchmark")[0]
 
 
+_HEADER_TRACK = re.compile(r"(?:^|[\s,])track (?P<track>[\w-]+)")
+
+
+def header_track(path: Path | str) -> str | None:
+    """The track a pose file's ``#`` header records (``eval`` writes ``# method ..., track predicted,
+    ...``), or None when its header names none."""
+    for line in io.read_text(path).splitlines():
+        if not line.startswith("#"):
+            if line.strip():
+                break
+            continue
+        m = _HEADER_TRACK.search(line[1:])
+        if m:
+            return m["track"]
+    return None
+
+
 NAME_STYLES = ("benchmark", "hloc")
 """How a submission names its queries: ``benchmark`` (``query/000012``) or ``hloc``, the image path
 relative to the scene directory (``query/color/000012.png``), as hloc's pose files write it."""

@@ -20,6 +20,7 @@ pose file last, so a frame counts as finished exactly when its pose file exists 
 from __future__ import annotations
 
 import hashlib
+import re
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -331,6 +332,31 @@ def _id_key(stem: str) -> tuple[int, str]:
 def _image_size(path: Path) -> tuple[int, int]:
     img = io.read_rgb(path)
     return img.shape[1], img.shape[0]
+
+
+SCENE_FILES = ("scene.json", "objects.json", "difficulty.csv", "query_displaced/displacements.json")
+FRAME_FOLDERS = ("color", "depth", "instance", "pose", "intrinsic")
+
+
+def foreign_files(root: Path | str) -> list[Path]:
+    """The files under a generated scene that :class:`SceneWriter` does not write (the user's notes, a
+    README in a frame folder), sorted: regenerating the scene must not delete them."""
+    root = Path(root)
+    written = re.compile(r"\d{6}\.(png|txt)|intrinsic_color\.txt|\..*\.tmp")  # frames, intrinsics, temps
+    foreign = []
+    for p in sorted(root.rglob("*")):
+        rel = p.relative_to(root)
+        if p.is_dir():
+            ok = (len(rel.parts) == 1 and rel.parts[0] in SPLITS) or (
+                len(rel.parts) == 2 and rel.parts[0] in SPLITS and rel.parts[1] in FRAME_FOLDERS
+            )
+        else:
+            ok = rel.as_posix() in SCENE_FILES or (
+                len(rel.parts) == 3 and rel.parts[1] in FRAME_FOLDERS and written.fullmatch(rel.parts[2]) is not None
+            )
+        if not ok:
+            foreign.append(p)
+    return [p for p in foreign if not any(q in p.parents for q in foreign)]
 
 
 class SceneWriter:

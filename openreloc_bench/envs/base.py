@@ -28,6 +28,7 @@ gymnasium's default for vector environments (next step).
 
 from __future__ import annotations
 
+import logging
 import os
 import sys
 from dataclasses import dataclass, field
@@ -45,6 +46,8 @@ from openreloc_bench.envs.scenes import cache_root, resolve_scene
 from openreloc_bench.envs.world import AgentPose, World, scene_spec
 from openreloc_bench.errors import ConfigError, OpenRelocError
 from openreloc_bench.methods import DEFAULT_TRACK
+
+log = logging.getLogger(__name__)
 
 MOVES = ("forward", "turn_left", "turn_right", "look_up", "look_down")
 FORWARD, TURN_LEFT, TURN_RIGHT, LOOK_UP, LOOK_DOWN, DONE = range(6)
@@ -150,8 +153,9 @@ class IndoorEnv(gym.Env, EzPickle):
                 raise ConfigError(
                     f"render_mode {render_mode!r} is not one of {self.metadata['render_modes']} (or None)"
                 )
-            if render_mode == "human" and not has_display():
-                raise ConfigError("render_mode 'human' needs a display (none is set); use render_mode='rgb_array'")
+            self._headless = render_mode == "human" and not has_display()
+            if self._headless:  # as gymnasium's check_env makes every mode it lists: show nothing, say so once
+                log.info("render_mode 'human' without a display shows nothing; render_mode='rgb_array' returns frames")
             self._cache = cache_root(cfg.cache_dir)
             self.scene = Scene(resolve_scene(cfg.scene, cfg.suite, cfg.cache_dir))
             self.scene_spec = scene_spec(self.scene)
@@ -295,6 +299,8 @@ class IndoorEnv(gym.Env, EzPickle):
             return None
         if self._pose is None or self._rgb is None:
             raise gym.error.ResetNeeded("call reset() before render()")
+        if self._headless:
+            return None
         estimate = None if self._estimate is None else self._estimate.T_wc
         top = self.world.top_down(self._pose.floor, self.camera_pose, estimate, self._goal_box())
         h = top.shape[0]

@@ -17,7 +17,7 @@ from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from typing import Any, Protocol, TypeVar
 
-from openreloc_bench.errors import ConfigError
+from openreloc_bench.errors import ConfigError, exit_quietly_on_interrupt
 
 J = TypeVar("J")
 EXECUTORS = ("local", "ray")
@@ -39,12 +39,14 @@ def mp_context() -> mp.context.BaseContext:
 
 
 def exit_with(parent_pid: int, poll_s: float = 1.0) -> None:
-    """Pool-worker initializer: exit as soon as process ``parent_pid`` (the one running the pool) is gone.
+    """Pool-worker initializer: exit as soon as process ``parent_pid`` (the one running the pool) is gone,
+    and quietly on Ctrl-C (:func:`~openreloc_bench.errors.exit_quietly_on_interrupt`).
 
     Killing an eval (SIGTERM, SIGKILL) ends only its main process; the workers are children of the
     fork server, not of it, so without this they finish their jobs and write results for a run that
     was stopped (orphans were seen still running long after, next to a new run on the same folder).
     """
+    exit_quietly_on_interrupt()
 
     def watch() -> None:
         while True:

@@ -39,7 +39,7 @@ from openreloc_bench.data import io, paths
 from openreloc_bench.data.results import write_results, write_tum
 from openreloc_bench.data.scene import Scene
 from openreloc_bench.data.types import SceneSequence
-from openreloc_bench.errors import ConfigError, DataError
+from openreloc_bench.errors import ConfigError, DataError, exit_quietly_on_interrupt
 from openreloc_bench.harness import cache
 from openreloc_bench.harness.ablations import ABLATED_METHOD, ABLATION_ROWS, ablation_label
 from openreloc_bench.harness.executors import exit_with, make_executor, mp_context
@@ -178,6 +178,7 @@ def _load_method(job: QueryJob) -> tuple[Relocalizer, SceneSequence, float]:
 
 def _serve(conn: Any, job: QueryJob) -> None:
     """Query-server child: load the map once, then answer query indices until told to stop."""
+    exit_quietly_on_interrupt()
     try:
         method, seq, load_s = _load_method(job)
     except Exception as e:  # noqa: BLE001 -- reported by the parent as this job's one-line error

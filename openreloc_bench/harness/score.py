@@ -13,11 +13,11 @@ import numpy as np
 import pandas as pd
 
 from openreloc_bench import geometry
-from openreloc_bench.data.results import hloc_name, read_submission
+from openreloc_bench.data.results import header_track, hloc_name, read_submission
 from openreloc_bench.data.scene import DIFFICULTY_COLUMNS, Scene
 from openreloc_bench.data.types import SceneSequence
-from openreloc_bench.errors import DataError
-from openreloc_bench.methods import MASK_FREE
+from openreloc_bench.errors import ConfigError, DataError
+from openreloc_bench.methods import DEFAULT_TRACK, MASK_FREE
 
 QUERY_COLUMNS = (
     "query", "success", "t_err_m", "r_err_deg", "runtime_s", "reason",
@@ -167,6 +167,35 @@ def submission_scenes(submission: Path, data: Path) -> list[str]:
             "--suite to score the suite's scenes only",
         )
     return sorted(names)
+
+
+def submission_track(submission: Path, scenes: list[str], given: str | None, known: tuple[str, ...]) -> str:
+    """The track to file a submission under: ``given`` (``--track``), or the one its pose files' headers
+    record, else the default track. Files that record another track than ``given``, or disagree among
+    themselves, are refused: a score filed under the wrong track would stand in the wrong table."""
+    files = sorted(
+        p
+        for name in scenes
+        for p in (
+            submission / f"{name}.txt",
+            submission / f"{MAPFREE_PREFIX}{name}.txt",
+            *submission.glob(f"{name}/*.txt"),
+        )
+        if p.is_file()
+    )
+    recorded = {p: t for p in files if (t := header_track(p)) is not None}
+    for p, t in recorded.items():
+        if t not in known:
+            raise DataError(p, f"its header records track '{t}', which is none of {', '.join(known)}")
+        if given is not None and t != given:
+            raise ConfigError(f"{p} records track '{t}' in its header but --track is {given}: drop --track or fix it")
+    tracks = sorted(set(recorded.values()))
+    if len(tracks) > 1:
+        first = {t: next(p for p, u in recorded.items() if u == t) for t in tracks}
+        raise DataError(
+            submission, "its files record different tracks: " + ", ".join(f"{first[t].name} {t}" for t in tracks)
+        )
+    return given or (tracks[0] if tracks else DEFAULT_TRACK)
 
 
 def _scene_of_file(stem: str, data: Path) -> str:

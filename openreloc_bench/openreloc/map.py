@@ -172,8 +172,14 @@ class ObjectMap:
         a, meta = mapfile.read_arrays(map_dir, MAP_FORMAT_NAME, MAP_FORMAT_VERSION)
         try:
             return cls._from_arrays(a, meta)
-        except (KeyError, ValueError, IndexError) as e:
-            raise DataError(map_dir / mapfile.ARRAYS, f"malformed map arrays ({type(e).__name__}: {e})") from None
+        except (
+            KeyError,
+            ValueError,
+            IndexError,
+            TypeError,
+            AttributeError,
+        ) as e:  # arrays or meta.json of a forged map
+            raise DataError(map_dir, f"malformed map arrays or metadata ({type(e).__name__}: {e})") from None
 
     @classmethod
     def _from_arrays(cls, a: dict[str, np.ndarray], meta: dict[str, Any]) -> ObjectMap:

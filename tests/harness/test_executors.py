@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
 import time
@@ -56,6 +57,37 @@ def test_pool_workers_exit_when_the_eval_is_killed() -> None:
         assert not _running(worker)
     finally:
         proc.kill()
+
+
+def test_ctrl_c_ends_the_pool_in_one_line() -> None:
+    """SIGINT to the process group (what Ctrl-C sends) while a worker is busy: the workers end silently,
+    the parent reports it once; no worker prints its KeyboardInterrupt traceback."""
+    script = (
+        "import sys\n"
+        "from openreloc_bench.harness.executors import LocalExecutor\n"
+        "from harness_test_methods import nap\n"
+        "try:\n"
+        "    for _, pid in LocalExecutor(1).map(nap, [0, 120]):\n"
+        "        print(pid, flush=True)\n"
+        "except KeyboardInterrupt:\n"
+        "    sys.exit('interrupted')\n"
+    )
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(Path(__file__).parent), os.environ.get("PYTHONPATH", "")])}
+    proc = subprocess.Popen(
+        [sys.executable, "-c", script],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+        start_new_session=True,  # its own process group, so the signal reaches this test's processes only
+    )
+    try:
+        proc.stdout.readline()  # the first job is done; the worker is in the 120 s one
+        os.killpg(proc.pid, signal.SIGINT)
+        _, err = proc.communicate(timeout=30)
+    finally:
+        proc.kill()
+    assert proc.returncode == 1 and err == "interrupted\n", err
 
 
 def test_unknown_executor() -> None:

@@ -251,6 +251,28 @@ MISTAKES: dict[str, tuple[str, Callable[[World], list[str]], str]] = {
         "overlaps the input",
     ),
     "preview: --frames 0": ("preview", lambda w: ["preview", str(w.scene), "--frames", "0"], "--frames must be in [1, 32]"),
+    "agent: a negative seed": ("agent", lambda w: ["agent", "ActiveReloc-v0", "--seed", "-1"], "--seed must be at least 0"),
+    "agent: --out under a regular file": (
+        "agent",
+        lambda w: ["agent", "ActiveReloc-v0", "--out", str(w.inputs / "file.txt" / "episodes.csv")],
+        "cannot write in",
+    ),
+    "score: a pose file of another track than --track": (
+        "score",
+        lambda w: [
+            "score", str(submission(w, "# method m, track oracle-mask\n")), "--data", str(w.data),
+            "--track", "predicted", "--out", str(w.tmp / "scores"),
+        ],
+        "records track 'oracle-mask' in its header but --track is predicted",
+    ),
+    "score: pose files of two tracks": (
+        "score",
+        lambda w: [
+            "score", str(submission(w, "# track predicted\n", also="sB.txt", also_content="# track oracle-mask\n")),
+            "--data", str(w.data), "--out", str(w.tmp / "scores"),
+        ],
+        "its files record different tracks",
+    ),
     "train-encoder: --threads 0": (
         "train-encoder",
         lambda w: ["train-encoder", "--out", str(w.tmp / "enc"), "--threads", "0"],
@@ -295,12 +317,14 @@ def results_with(w: World, queries_csv: bytes) -> Path:
     return r
 
 
-def submission(w: World, content: str | bytes, also: str = "") -> Path:
+def submission(w: World, content: str | bytes, also: str = "", also_content: str | bytes | None = None) -> Path:
+    """A submission folder with ``sA.txt`` (and ``also``) holding ``content`` (``also_content`` for ``also``)."""
     sub = w.inputs / "submission"
     sub.mkdir(exist_ok=True)
-    for name in filter(None, ("sA.txt", also)):
-        (sub / name).parent.mkdir(parents=True, exist_ok=True)
-        (sub / name).write_bytes(content.encode() if isinstance(content, str) else content)
+    for name, text in (("sA.txt", content), (also, content if also_content is None else also_content)):
+        if name:
+            (sub / name).parent.mkdir(parents=True, exist_ok=True)
+            (sub / name).write_bytes(text.encode() if isinstance(text, str) else text)
     return sub
 
 

@@ -20,6 +20,7 @@ import hashlib
 import io
 import json
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -71,6 +72,11 @@ def scrub_csv(text: str) -> str:
     return buf.getvalue()
 
 
+def scrub_header(text: str) -> str:
+    """A pose file without the commit its ``#`` header names."""
+    return re.sub(r"^(#.*\bcommit )\S+", r"\g<1>0", text, flags=re.MULTILINE)
+
+
 def scrub_tree(root: Path) -> None:
     """Rewrite a copied results tree in place without its volatile fields."""
     for path in sorted(root.rglob("*")):
@@ -80,6 +86,8 @@ def scrub_tree(root: Path) -> None:
             path.write_text(json.dumps(scrub_json(json.loads(path.read_text())), indent=1, sort_keys=True))
         elif path.suffix == ".csv":
             path.write_text(scrub_csv(path.read_text()))
+        elif path.suffix == ".txt":
+            path.write_text(scrub_header(path.read_text()))
 
 
 def content_hash(path: Path) -> str:

@@ -25,6 +25,7 @@ from openreloc_bench.data.scene import QUERY_SPLITS
 from openreloc_bench.errors import ConfigError, DataError
 from openreloc_bench.harness import cache, runner, tables
 from openreloc_bench.harness.ablations import ABLATED_METHOD
+from openreloc_bench.harness.evaluation import tabulate
 from openreloc_bench.harness.suites import ensure_suite_scenes
 from openreloc_bench.methods import MASK_FREE, uses_masks
 
@@ -330,10 +331,8 @@ def render(cfg: CampaignConfig, ledger: Ledger, say: Callable[[str], None]) -> N
     summaries = []
     for suite in cfg.plan.suites:
         results = cfg.work / suite
-        queries = runner.load_run_queries(results) if results.is_dir() else pd.DataFrame()
-        if queries.empty:
+        if tabulate(results) is None:
             continue
-        tables.write_tables(results / "tables", queries, runner.load_map_records(results))
         board = cfg.out / suite
         write_leaderboard([results], board, cfg.data)
         for abl in sorted((results / "tables").glob("ablations_*.md")):

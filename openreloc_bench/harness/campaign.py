@@ -216,6 +216,22 @@ class Ledger:
         io.write_json(self.path, self.data)
 
 
+def list_steps(plan: CampaignPlan, work: Path, say: Callable[[str], None] = print) -> None:
+    """Say each of the plan's steps and whether ``work``'s record holds it done, and how many are done
+    (and about how long the rest take); a record of any commit is read, and one of another says so."""
+    ledger = Ledger(work, None) if (work / "campaign.json").is_file() else None
+    if ledger and ledger.data.get("commit") != cache.git_commit():
+        say(f"{work} holds a campaign run at commit {ledger.data.get('commit')}, not this checkout's")
+    steps = plan_steps(plan)
+    done = [bool(ledger and ledger.done(step)) for step in steps]
+    for k, (step, is_done) in enumerate(zip(steps, done, strict=True), 1):
+        state = "done" if is_done else "to run"
+        say(f"{k:3d}/{len(steps)} {state:6s} {step.key}: {', '.join(step.splits)}; seeds {list(step.seeds)}")
+    n_done = sum(done)
+    left = remaining_s(steps, ledger) if ledger else None
+    say(f"{n_done} of {len(steps)} steps done{left_text(left) if n_done < len(steps) else ''}")
+
+
 def run_campaign(cfg: CampaignConfig, say: Callable[[str], None] = print) -> int:
     """Run the plan's missing steps, then render the boards; returns the number of steps with errors."""
     check_plan(cfg.plan)

@@ -9,6 +9,7 @@ each difficulty axis, as plots and as numbers (``difficulty.csv``). The rows (:m
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 from openreloc_bench.data import io, paths
@@ -84,3 +85,12 @@ def write_leaderboard(results: list[Path], out: Path, data: Path | None = None) 
         *plots,
         *difficulty_plots,
     ]
+
+
+def main(results: list[Path], out: Path, data: Path | None = None, say: Callable[[str], None] = print) -> list[Path]:
+    """Render the board (:func:`write_leaderboard`), then say its verdict and per-track tables and how many
+    files it wrote; returns them."""
+    files = write_leaderboard(results, out, data)
+    say((out / "leaderboard.md").read_text().split("\n## Per scene")[0].rstrip())  # one table per track
+    say(f"wrote {len(files)} files to {out}")
+    return files

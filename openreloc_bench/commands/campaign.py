@@ -40,21 +40,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from openreloc_bench.harness import cache, campaign
+    from openreloc_bench.harness import campaign
 
     plan = campaign.load_plan(args.plan)
     if args.list:
-        ledger = campaign.Ledger(args.work, None) if (args.work / "campaign.json").is_file() else None
-        if ledger and ledger.data.get("commit") != cache.git_commit():
-            print(f"{args.work} holds a campaign run at commit {ledger.data.get('commit')}, not this checkout's")
-        steps = campaign.plan_steps(plan)
-        done = [bool(ledger and ledger.done(step)) for step in steps]
-        for k, (step, is_done) in enumerate(zip(steps, done, strict=True), 1):
-            state = "done" if is_done else "to run"
-            print(f"{k:3d}/{len(steps)} {state:6s} {step.key}: {', '.join(step.splits)}; seeds {list(step.seeds)}")
-        n_done = sum(done)
-        left = campaign.remaining_s(steps, ledger) if ledger else None
-        print(f"{n_done} of {len(steps)} steps done{campaign.left_text(left) if n_done < len(steps) else ''}")
+        campaign.list_steps(plan, args.work)
         return 0
     cfg = campaign.CampaignConfig(
         plan=plan, data=args.data, work=args.work, out=args.out, executor=args.executor, workers=args.workers,

@@ -2,7 +2,7 @@
 (normal, lighting decay 1-4, displaced objects), print the metrics table and write the leaderboard
 (tables, HTML, plots) for the run.
 
-It is exactly these two commands (printed as it runs, so you can take them from there):
+It runs what these two commands run (printed as it runs, so you can take them from there):
 
   openreloc-bench eval --suite scenes/smoke.yaml --methods openreloc,nearest-frame \\
       --data OUT/data --out OUT/results --robustness --resume
@@ -18,7 +18,7 @@ import argparse
 import shlex
 from pathlib import Path
 
-from openreloc_bench.commands.options import add_plugin_argument
+from openreloc_bench.commands.options import add_plugin_argument, comma_list
 from openreloc_bench.errors import ConfigError
 
 NAME = "demo"
@@ -36,20 +36,27 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from openreloc_bench.cli import main
+    from openreloc_bench.harness import evaluation, leaderboard, runner
+    from openreloc_bench.harness.ablations import ROBUSTNESS_ROWS
 
     if not args.suite.is_file():
         raise ConfigError(f"suite file {args.suite} not found (run from a checkout, or pass --suite)")
-    steps = [
-        ["eval", "--suite", str(args.suite), "--methods", args.methods, "--data", str(args.out / "data"),
-         "--out", str(args.out / "results"), "--robustness", "--resume",
-         *(x for spec in args.plugin for x in ("--plugin", spec))],
-        ["leaderboard", str(args.out / "results"), "--out", str(args.out / "leaderboard")],
-    ]  # fmt: skip
-    for argv in steps:
-        print(f"\n$ openreloc-bench {shlex.join(argv)}", flush=True)
-        code = main(argv)
-        if code:
-            return code
-    print(f"\ndemo done: open {args.out / 'leaderboard' / 'index.html'} (plots in the same folder)")
+    data, results, board = args.out / "data", args.out / "results", args.out / "leaderboard"
+    _say_command(["eval", "--suite", str(args.suite), "--methods", args.methods, "--data", str(data),
+                  "--out", str(results), "--robustness", "--resume",
+                  *(x for spec in args.plugin for x in ("--plugin", spec))])  # fmt: skip
+    cfg = runner.EvalConfig(
+        data=data, out=results, scenes=[], runs=runner.variant_runs(comma_list(args.methods, "--methods"), {}, False),
+        splits=[r.key for r in ROBUSTNESS_ROWS], resume=True, plugins=args.plugin,
+    )  # fmt: skip
+    if evaluation.main(cfg, args.suite).errors:
+        return 1
+    _say_command(["leaderboard", str(results), "--out", str(board)])
+    leaderboard.main([results], board)
+    print(f"\ndemo done: open {board / 'index.html'} (plots in the same folder)")
     return 0
+
+
+def _say_command(argv: list[str]) -> None:
+    """The command line that does the step the demo runs next."""
+    print(f"\n$ openreloc-bench {shlex.join(argv)}", flush=True)

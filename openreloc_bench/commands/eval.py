@@ -23,14 +23,13 @@ import math
 from pathlib import Path
 
 from openreloc_bench import config
-from openreloc_bench.commands.options import TRACK_HELP, add_plugin_argument, add_track_argument
+from openreloc_bench.commands.options import TRACK_HELP, add_plugin_argument, add_track_argument, comma_list
 from openreloc_bench.data import paths
 from openreloc_bench.data.scene import QUERY_SPLITS
 from openreloc_bench.errors import ConfigError
-from openreloc_bench.harness import runner, tables
+from openreloc_bench.harness import evaluation, runner
 from openreloc_bench.harness.ablations import ABLATED_METHOD, ROBUSTNESS_ROWS
 from openreloc_bench.harness.executors import EXECUTORS
-from openreloc_bench.harness.suites import ensure_suite_scenes
 
 NAME = "eval"
 HELP = "evaluate methods on a scene suite (maps, queries, metrics)"
@@ -78,14 +77,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_plugin_argument(p)
 
 
-def _csv(s: str, flag: str) -> list[str]:
-    """Comma-separated names, each once, in order; ConfigError when there is none."""
-    names = list(dict.fromkeys(x.strip() for x in s.split(",") if x.strip()))
-    if not names:
-        raise ConfigError(f"{flag} names nothing: give comma-separated names")
-    return names
-
-
 def method_runs(names: list[str], config_files: list[str], ablations: bool) -> list[runner.MethodRun]:
     """Method variants: each named method with its overrides, plus the ablation rows if asked."""
     overrides: dict[str, dict] = {}
@@ -116,10 +107,11 @@ def scene_names(entries: list[str], data: Path) -> list[str]:
 
 
 def _seeds(s: str) -> list[int]:
+    """``--seeds`` as 64-bit seeds >= 0 (none when empty)."""
     if not s.strip():
         return []
     try:
-        seeds = [int(x) for x in _csv(s, "--seeds")]
+        seeds = [int(x) for x in comma_list(s, "--seeds")]
     except ValueError:
         raise ConfigError(f"--seeds expects comma-separated integers, got '{s}'") from None
     wrong = [x for x in seeds if not 0 <= x < 2**63]
@@ -128,44 +120,28 @@ def _seeds(s: str) -> list[int]:
     return seeds
 
 
-def run(args: argparse.Namespace) -> int:
+def eval_config(args: argparse.Namespace) -> runner.EvalConfig:
+    """The evaluation the arguments ask for, every flag checked (``--suite``'s scenes are left to
+    :func:`~openreloc_bench.harness.evaluation.main`, which generates the missing ones)."""
     if args.workers < 1:
         raise ConfigError("--workers must be >= 1")
     for flag, value in (("--timeout", args.timeout), ("--map-timeout", args.map_timeout)):
         if not math.isfinite(value) or not 0 <= value <= MAX_TIMEOUT_S:
             raise ConfigError(f"{flag} must be a number of seconds in [0, {MAX_TIMEOUT_S:g}], got {value}")
-    splits = _csv(args.splits, "--splits")
+    splits = comma_list(args.splits, "--splits")
     if "mapping" in splits:
         raise ConfigError("--splits: 'mapping' builds the maps; localizing its own frames measures nothing")
     if args.robustness:
         splits += [r.key for r in ROBUSTNESS_ROWS if r.key not in splits]
-    runs = method_runs(_csv(args.methods, "--methods"), args.method_config, args.ablations)
+    runs = method_runs(comma_list(args.methods, "--methods"), args.method_config, args.ablations)
     seeds = _seeds(args.seeds)
-    runner.seeded_runs(runs, seeds)  # unknown methods and bad settings fail here, before scenes are generated
-    if args.scenes is not None:
-        scenes = scene_names(_csv(args.scenes, "--scenes"), args.data)
-    else:
-        scenes = ensure_suite_scenes(args.suite, args.data)
-    cfg = runner.EvalConfig(
+    scenes = [] if args.scenes is None else scene_names(comma_list(args.scenes, "--scenes"), args.data)
+    return runner.EvalConfig(
         data=args.data, out=args.out, scenes=scenes, runs=runs, splits=splits, track=args.track,
         executor=args.executor, workers=args.workers, ray_address=args.ray_address, resume=args.resume,
         timeout_s=args.timeout, map_timeout_s=args.map_timeout, plugins=args.plugin, seeds=seeds,
     )  # fmt: skip
-    report = runner.evaluate(cfg)
-    queries = runner.load_run_queries(args.out)
-    if report.jobs_stale:
-        print(f"resume: {report.jobs_stale} finished job(s) were run with other settings or scenes and were recomputed")
-    if not queries.empty:
-        _, suite, seeds = tables.write_tables(args.out / "tables", queries, runner.load_map_records(args.out))
-        print(tables.compact(suite))
-        if not seeds.empty:
-            print(tables.compact_seeds(seeds))
-        print(f"tables: {args.out / 'tables'}")
-    for err in report.errors:
-        print(f"error: {err}")
-    print(  # the summary last, where a user looks when the run ends
-        f"maps: {report.maps_built} built, {report.maps_cached} cached; jobs: {report.jobs_run} run, "
-        f"{report.jobs_skipped} resumed; queries: {report.queries_localized} of {report.queries} localized; "
-        f"{len(report.errors)} errors; {report.wall_s:.1f} s"
-    )
-    return 1 if report.errors else 0
+
+
+def run(args: argparse.Namespace) -> int:
+    return 1 if evaluation.main(eval_config(args), args.suite).errors else 0

@@ -34,10 +34,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from openreloc_bench.harness.leaderboard import write_leaderboard  # matplotlib: only when used
+    from openreloc_bench.harness import leaderboard  # matplotlib: only when used
 
-    files = write_leaderboard(args.results, args.out, args.data)
-    board = (args.out / "leaderboard.md").read_text().split("\n## Per scene")[0]  # one table per track
-    print(board.rstrip())
-    print(f"wrote {len(files)} files to {args.out}")
+    leaderboard.main(args.results, args.out, args.data)
     return 0

@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from openreloc_bench import config, plugins
+from openreloc_bench.errors import ConfigError
 from openreloc_bench.methods import DEFAULT_TRACK, TRACKS
 
 
@@ -46,6 +47,14 @@ TRACK_HELP = (
     "masks with every frame (a perfect detector). Methods that read no masks are recorded as mask-free"
 )
 """What ``--track`` means, for the commands that run methods."""
+
+
+def comma_list(text: str, flag: str) -> list[str]:
+    """The comma-separated names of ``flag``'s value, each once, in order; ConfigError when there is none."""
+    names = list(dict.fromkeys(x.strip() for x in text.split(",") if x.strip()))
+    if not names:
+        raise ConfigError(f"{flag} names nothing: give comma-separated names")
+    return names
 
 
 def add_method_config_arguments(p: argparse.ArgumentParser) -> None:

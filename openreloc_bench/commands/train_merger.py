@@ -25,13 +25,6 @@ NAME = "train-merger"
 HELP = "train the predicted track's instance merge classifier on generated training scenes"
 ORDER = 62
 
-TRAIN_SEED_OFFSET = 300_000
-EVAL_SEED_OFFSET = 800_000
-"""Scene seeds TRAINING_SEED_MIN + offset + 1000 * seed + i: disjoint from the encoder's and the
-segmenter's training scenes."""
-SCENE_SPEC = dict(with_floors=True, objects_per_room=30, room_side_max=5.5, n_query=5, n_displaced=2)
-"""Scenes as dense as the benchmark suites' (their mapping paths whole); queries are not used."""
-
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", type=Path, required=True, help="directory to write (merger.json, manifest.json)")
@@ -53,8 +46,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from openreloc_bench import config as cfgmod
-    from openreloc_bench.data import io, paths
-    from openreloc_bench.harness.suites import scene_dirs, training_scenes
+    from openreloc_bench.data import paths
+    from openreloc_bench.harness.training_data import MERGER_DATA, scene_seeds, training_scene_sets
     from openreloc_bench.openreloc.merger_training import collect_examples, pair_accuracy
     from openreloc_bench.openreloc.method import OpenReLocConfig
     from openreloc_bench.reconstruction.instance_repair import FEATURES, fit_merger
@@ -71,15 +64,9 @@ def run(args: argparse.Namespace) -> int:
     data = args.data or args.out / "scenes"
     config = method_cfg.mapping
     with paths.directory_lock(args.out, "openreloc-bench train-merger"):
-        train_dirs, eval_dirs = scene_dirs(data / "train"), scene_dirs(data / "eval")
-        if not (train_dirs and eval_dirs):
-            from generators.spec import TRAINING_SEED_MIN
-
-            base = TRAINING_SEED_MIN + 1000 * args.seed
-            seeds = [base + TRAIN_SEED_OFFSET + i for i in range(args.scenes)]
-            train_dirs = training_scenes(data / "train", "train", seeds, 640, 480, args.workers, **SCENE_SPEC)
-            seeds = [base + EVAL_SEED_OFFSET + i for i in range(args.eval_scenes)]
-            eval_dirs = training_scenes(data / "eval", "eval", seeds, 640, 480, args.workers, **SCENE_SPEC)
+        train_dirs, eval_dirs, _ = training_scene_sets(
+            data, MERGER_DATA, args.seed, args.scenes, args.eval_scenes, 640, 480, args.workers
+        )
         t0 = time.time()
         train = collect_examples(train_dirs, segmenter, config)
         held = collect_examples(eval_dirs, segmenter, config)
@@ -90,8 +77,8 @@ def run(args: argparse.Namespace) -> int:
         classifier.card = {
             "segmenter": segmenter.config() if hasattr(segmenter, "config") else {"name": method_cfg.segmenter},
             "grouping": config.instances.grouping,
-            "train_seeds": [io.read_json(d / "scene.json").get("seed") for d in train_dirs],
-            "eval_seeds": [io.read_json(d / "scene.json").get("seed") for d in eval_dirs],
+            "train_seeds": scene_seeds(train_dirs),
+            "eval_seeds": scene_seeds(eval_dirs),
             "train_pairs": int(len(train.same)),
             "train_one_object": int(train.same.sum()),
             "held_out": {"threshold": threshold, **pair_accuracy(classifier, held, threshold)},

@@ -44,6 +44,8 @@ SPLITS = (
     "query_near",
 )
 QUERY_SPLITS = SPLITS[1:]
+LIGHT_SPLITS = ("query", *(s for s in SPLITS if s.startswith("query_light")))
+"""The query split under the mapping's lighting, then its variants under the four decayed lightings."""
 
 DATA_VERSION = 2
 """Version of the generated benchmark data, recorded in ``scene.json`` as ``data_version``; a reader

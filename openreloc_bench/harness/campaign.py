@@ -25,6 +25,7 @@ from openreloc_bench.data.scene import QUERY_SPLITS
 from openreloc_bench.errors import ConfigError, DataError
 from openreloc_bench.harness import cache, runner, tables
 from openreloc_bench.harness.ablations import ABLATED_METHOD
+from openreloc_bench.harness.evaluation import tabulate
 from openreloc_bench.harness.suites import ensure_suite_scenes
 from openreloc_bench.methods import MASK_FREE, uses_masks
 
@@ -215,6 +216,22 @@ class Ledger:
         io.write_json(self.path, self.data)
 
 
+def list_steps(plan: CampaignPlan, work: Path, say: Callable[[str], None] = print) -> None:
+    """Say each of the plan's steps and whether ``work``'s record holds it done, and how many are done
+    (and about how long the rest take); a record of any commit is read, and one of another says so."""
+    ledger = Ledger(work, None) if (work / "campaign.json").is_file() else None
+    if ledger and ledger.data.get("commit") != cache.git_commit():
+        say(f"{work} holds a campaign run at commit {ledger.data.get('commit')}, not this checkout's")
+    steps = plan_steps(plan)
+    done = [bool(ledger and ledger.done(step)) for step in steps]
+    for k, (step, is_done) in enumerate(zip(steps, done, strict=True), 1):
+        state = "done" if is_done else "to run"
+        say(f"{k:3d}/{len(steps)} {state:6s} {step.key}: {', '.join(step.splits)}; seeds {list(step.seeds)}")
+    n_done = sum(done)
+    left = remaining_s(steps, ledger) if ledger else None
+    say(f"{n_done} of {len(steps)} steps done{left_text(left) if n_done < len(steps) else ''}")
+
+
 def run_campaign(cfg: CampaignConfig, say: Callable[[str], None] = print) -> int:
     """Run the plan's missing steps, then render the boards; returns the number of steps with errors."""
     check_plan(cfg.plan)
@@ -330,10 +347,8 @@ def render(cfg: CampaignConfig, ledger: Ledger, say: Callable[[str], None]) -> N
     summaries = []
     for suite in cfg.plan.suites:
         results = cfg.work / suite
-        queries = runner.load_run_queries(results) if results.is_dir() else pd.DataFrame()
-        if queries.empty:
+        if tabulate(results) is None:
             continue
-        tables.write_tables(results / "tables", queries, runner.load_map_records(results))
         board = cfg.out / suite
         write_leaderboard([results], board, cfg.data)
         for abl in sorted((results / "tables").glob("ablations_*.md")):

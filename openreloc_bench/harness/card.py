@@ -74,7 +74,7 @@ def write_card(suite_path: Path, data: Path, out: Path) -> list[Path]:
         written.append(pictures / f"{scene.name}_frames.png")
         _write_png(written[-1], contact_sheet(scene, difficulty))
         written.append(pictures / f"{scene.name}_plan.png")
-        _write_png(written[-1], _figure_rgb(plan_figure(scene)))
+        _write_png(written[-1], _figure_rgb(floor_plan_figure(scene)))
     md = Path(out) / f"{name}.md"
     io.atomic_write_text(md, card_markdown(suite, Path(suite_path).name, scenes, difficulty, name))
     return [md, *written]
@@ -233,8 +233,8 @@ def plot_difficulty(difficulty: pd.DataFrame) -> plt.Figure:
     return fig
 
 
-def plan_figure(scene: Scene) -> plt.Figure:
-    """The scene's top-down plan as ``preview`` draws it (rooms, objects, mapping path, query poses)."""
+def floor_plan_figure(scene: Scene) -> plt.Figure:
+    """The scene's top-down floor plan as ``preview`` draws it (rooms, objects, mapping path, query poses)."""
     from generators.preview import floor_plan
 
     return floor_plan(scene)

@@ -93,31 +93,3 @@ def scene_state(root: Path, expected_hash: str) -> str:
     writer = SceneWriter(root)
     done = all(writer.has_frame(s, i) for s, n in counts.items() for i in range(n))
     return "complete" if counts and done else "partial"
-
-
-def scene_dirs(root: Path) -> list[Path]:
-    """The generated scenes directly under ``root`` (folders holding a ``scene.json``), sorted."""
-    return sorted(p for p in root.iterdir() if (p / "scene.json").is_file()) if root.is_dir() else []
-
-
-def training_scenes(
-    root: Path,
-    prefix: str,
-    seeds: list[int],
-    width: int,
-    height: int,
-    workers: int,
-    with_floors: bool = False,
-    **overrides: Any,
-) -> list[Path]:
-    """Generate (or finish) one training scene per reserved seed under ``root``, in spawned processes
-    (``generators.generate.training_specs``: ``overrides`` set further spec fields of every scene)."""
-    try:
-        from generators.generate import generate_scenes, training_specs
-    except ImportError as e:
-        raise ConfigError(
-            f"the scene generator is not available ({e}); pass --data with train/ and eval/ scenes"
-        ) from None
-    specs = training_specs(prefix, seeds, width, height, with_floors=with_floors, **overrides)
-    root.mkdir(parents=True, exist_ok=True)
-    return generate_scenes(specs, root, resume=True, workers=workers, desc=f"{prefix} scenes")

@@ -34,7 +34,7 @@ from scipy.special import ndtri
 from tqdm import tqdm
 
 from openreloc_bench.data import io
-from openreloc_bench.data.scene import Scene
+from openreloc_bench.data.scene import LIGHT_SPLITS, Scene
 from openreloc_bench.errors import ConfigError
 from openreloc_bench.vision.learned_segment import (
     BoundaryNet,
@@ -47,7 +47,7 @@ from openreloc_bench.vision.learned_segment import (
 )
 from openreloc_bench.vision.training import training_device
 
-FRAME_SPLITS = ("mapping", "query", "query_light1", "query_light2", "query_light3", "query_light4", "query_displaced")
+FRAME_SPLITS = ("mapping", *LIGHT_SPLITS, "query_displaced")
 
 
 @dataclass

@@ -13,7 +13,7 @@ import pytest
 from PIL import Image
 
 from openreloc_bench.harness import browser
-from openreloc_bench.harness.leaderboard import to_html
+from openreloc_bench.harness.leaderboard.pages import to_html
 
 needs_browser = pytest.mark.skipif(not browser.available(), reason=browser.MISSING)
 

@@ -18,7 +18,7 @@ import pytest
 
 from openreloc_bench.data import paths
 from openreloc_bench.data.results import read_tum_trajectory
-from openreloc_bench.harness.leaderboard import BOARD_INPUT_COLUMNS
+from openreloc_bench.harness.leaderboard.rows import BOARD_INPUT_COLUMNS
 from tests.reliability.conftest import PLUGIN, World, checksums, one_line_error, run
 
 

@@ -1,0 +1,54 @@
+"""One evaluation from its config to its tables: what ``openreloc-bench eval`` (and ``demo``) runs.
+
+The methods are checked first, then a suite's missing scenes are generated, every job runs
+(:func:`~openreloc_bench.harness.runner.evaluate`), and the results folder's tables are written from
+every finished job in it (:func:`tabulate`, which the campaign uses too).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import replace
+from pathlib import Path
+
+import pandas as pd
+
+from openreloc_bench.harness import runner, tables
+from openreloc_bench.harness.suites import ensure_suite_scenes
+
+
+def tabulate(results: Path) -> tuple[pd.DataFrame, pd.DataFrame] | None:
+    """Write ``results/tables`` from every finished job under ``results`` (:func:`tables.write_tables`);
+    returns the suite and seeds tables, or None (and writes nothing) when no job has finished."""
+    queries = runner.load_run_queries(results)
+    if queries.empty:
+        return None
+    _, suite, seeds = tables.write_tables(results / "tables", queries, runner.load_map_records(results))
+    return suite, seeds
+
+
+def main(cfg: runner.EvalConfig, suite: Path | None = None, say: Callable[[str], None] = print) -> runner.EvalReport:
+    """Evaluate ``cfg``, write the tables and say them, the errors and a summary (last, where a user looks
+    when the run ends). ``suite``: a suite YAML whose scenes to evaluate instead of ``cfg.scenes``, its
+    missing ones generated under ``cfg.data`` once the methods and their settings are known to be good."""
+    runner.seeded_runs(cfg.runs, cfg.seeds)  # unknown methods and bad settings fail here, before scenes are generated
+    if suite is not None:
+        cfg = replace(cfg, scenes=ensure_suite_scenes(suite, cfg.data))
+    report = runner.evaluate(cfg)
+    if report.jobs_stale:
+        say(f"resume: {report.jobs_stale} finished job(s) were run with other settings or scenes and were recomputed")
+    tabulated = tabulate(cfg.out)
+    if tabulated is not None:
+        suite_table, seeds = tabulated
+        say(tables.compact(suite_table))
+        if not seeds.empty:
+            say(tables.compact_seeds(seeds))
+        say(f"tables: {cfg.out / 'tables'}")
+    for err in report.errors:
+        say(f"error: {err}")
+    say(
+        f"maps: {report.maps_built} built, {report.maps_cached} cached; jobs: {report.jobs_run} run, "
+        f"{report.jobs_skipped} resumed; queries: {report.queries_localized} of {report.queries} localized; "
+        f"{len(report.errors)} errors; {report.wall_s:.1f} s"
+    )
+    return report

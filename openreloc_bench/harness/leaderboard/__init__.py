@@ -1,0 +1,96 @@
+"""The leaderboard: markdown, CSV, a sortable static HTML page and plots from results directories.
+
+Reads the per-query tables every ``eval`` / ``score`` run leaves (``tables/queries.csv`` under each
+results directory given), so several runs, including outside submissions, merge into one board. Where
+the queries carry their difficulty (generated scenes' ``difficulty.csv``), the board adds recall against
+each difficulty axis, as plots and as numbers (``difficulty.csv``). The rows (:mod:`.rows`), the verdict
+(:mod:`.verdict`), the pages (:mod:`.pages`) and the plots (:mod:`.plots`) each have their module.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+from openreloc_bench.data import io, paths
+from openreloc_bench.harness.leaderboard.pages import to_html, to_markdown
+from openreloc_bench.harness.leaderboard.plots import (
+    board_scene,
+    method_colors,
+    plot_cumulative,
+    plot_recall_vs_difficulty,
+    plot_recall_vs_lighting,
+    plot_recall_vs_map_size,
+    plot_scene_recall,
+    plot_topdown,
+)
+from openreloc_bench.harness.leaderboard.rows import (
+    board,
+    data_versions,
+    difficulty_table,
+    load_maps,
+    load_queries,
+    recorded_tracks,
+)
+from openreloc_bench.harness.tables import build_tables, pool_seeds
+from openreloc_bench.methods import MASK_FREE
+
+
+def write_leaderboard(results: list[Path], out: Path, data: Path | None = None) -> list[Path]:
+    """Render everything into ``out`` (never inside or around a results directory); returns the files written.
+    ``data``: the dataset directory, for each scene's floor plan under its top-down plot."""
+    q = recorded_tracks(pool_seeds(load_queries(results)))  # pooled first: seeded runs carry the method's name
+    for r in results:
+        paths.check_output(out, [r], "--out")
+    scenes, suite = build_tables(q, load_maps(results))
+    b = board(suite)
+    out.mkdir(parents=True, exist_ok=True)
+    plots_dir = out / "plots"
+    plots_dir.mkdir(exist_ok=True)
+    plots = [
+        plots_dir / "cumulative_translation.png",
+        plots_dir / "cumulative_rotation.png",
+        plots_dir / "recall_per_scene.png",
+    ]
+    colors = method_colors(q["method"])  # a method looks the same in every plot of the board
+    plot_cumulative(q, "t_err_m", 1.0, "translation error [m]", plots[0], colors)
+    plot_cumulative(q, "r_err_deg", 20.0, "rotation error [°]", plots[1], colors)
+    plot_scene_recall(scenes, plots[2], colors)
+    plots.append(plots_dir / "recall_vs_map_size.png")
+    plot_recall_vs_map_size(suite, plots[-1], colors)
+    if plot_recall_vs_lighting(suite, plots_dir / "recall_vs_lighting.png", colors):
+        plots.append(plots_dir / "recall_vs_lighting.png")
+    for scene in sorted(q.loc[q["split"] == "query", "scene"].unique()):
+        plots.append(plots_dir / f"topdown_{scene}.png")
+        specs = q.loc[q["scene"] == scene, "spec_hash"] if "spec_hash" in q else []
+        plot_topdown(q, scene, plots[-1], board_scene(data, scene, list(specs)))
+    binned = difficulty_table(q)
+    difficulty_plots = []
+    for track in [t for t in dict.fromkeys(b["track"]) if t != MASK_FREE] or [MASK_FREE]:
+        path = plots_dir / f"difficulty_{track}.png"
+        title = "methods that read no masks" if track == MASK_FREE else f"{track} track"
+        if plot_recall_vs_difficulty(binned[binned["track"].isin([track, MASK_FREE])], title, path, colors):
+            difficulty_plots.append(path)
+    versions = data_versions(q)
+    rel = [str(p.relative_to(out)) for p in difficulty_plots]
+    io.atomic_write_text(out / "leaderboard.csv", suite.to_csv(index=False))
+    io.atomic_write_text(out / "difficulty.csv", binned.to_csv(index=False))
+    io.atomic_write_text(out / "leaderboard.md", to_markdown(b, scenes, versions, rel))
+    io.atomic_write_text(out / "index.html", to_html(b, [str(p.relative_to(out)) for p in plots], versions, rel))
+    return [
+        out / "leaderboard.md",
+        out / "leaderboard.csv",
+        out / "difficulty.csv",
+        out / "index.html",
+        *plots,
+        *difficulty_plots,
+    ]
+
+
+def main(results: list[Path], out: Path, data: Path | None = None, say: Callable[[str], None] = print) -> list[Path]:
+    """Render the board (:func:`write_leaderboard`), then say its verdict and per-track tables and how many
+    files it wrote; returns them."""
+    files = write_leaderboard(results, out, data)
+    say((out / "leaderboard.md").read_text().split("\n## Per scene")[0].rstrip())  # one table per track
+    say(f"wrote {len(files)} files to {out}")
+    return files

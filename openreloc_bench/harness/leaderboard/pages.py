@@ -1,0 +1,155 @@
+"""A board's pages: the markdown board and the static HTML page with sortable tables and the plots."""
+
+from __future__ import annotations
+
+import html
+from collections.abc import Sequence
+
+import pandas as pd
+
+from openreloc_bench.harness.leaderboard.rows import (
+    BOARD_COLUMNS,
+    ROBUSTNESS_TITLE,
+    TRACK_TITLES,
+    format_cell,
+    provenance,
+    robustness_drops,
+    track_groups,
+    track_rank,
+)
+from openreloc_bench.harness.leaderboard.verdict import verdict, verdict_lead
+from openreloc_bench.harness.tables import md_table, paper_table
+from openreloc_bench.methods import MASK_FREE
+
+
+def _by_track(b: pd.DataFrame) -> list[tuple[str, pd.DataFrame]]:
+    """The board's rows cut into one table per track (:func:`track_groups`), each with its heading."""
+    free = "Methods that read no masks (the same on both tracks)"
+    return [
+        (
+            TRACK_TITLES.get(track, free if track == MASK_FREE else f"{track} track"),
+            t.sort_values(["split", "recall_25cm", "recall_50cm"], ascending=[True, False, False]),
+        )
+        for track, t in track_groups(b)
+    ]
+
+
+def _title(versions: str) -> str:
+    return f"openreloc-bench leaderboard ({versions})" if versions else "openreloc-bench leaderboard"
+
+
+DIFFICULTY_TEXT = (
+    "R@50cm (solid) and R@25cm (dashed) per bin of each query's difficulty (from its scene's difficulty.csv), "
+    "pooled over every scene and query split each method ran; n = queries in the bin. The numbers are in "
+    "difficulty.csv."
+)
+
+
+def to_markdown(b: pd.DataFrame, scenes: pd.DataFrame, versions: str = "", difficulty_plots: Sequence[str] = ()) -> str:
+    """The board: its verdict (:func:`verdict`), one table per track (the predicted track's first), the
+    robustness table, per-scene tables, map sizes and the recall-vs-difficulty plots (``difficulty_plots``,
+    paths relative to the board)."""
+    head = [BOARD_COLUMNS[c] for c in b.columns]
+    lines = [
+        f"# {_title(versions)}",
+        "",
+        f"**{verdict_lead()}:** {verdict(b)}",
+        "",
+        "Recall = share of all queries (failures count); MTE/MRE = mean error of the queries within the threshold.",
+        "",
+        provenance(b),
+    ]
+    for title, t in _by_track(b):
+        lines += [
+            "",
+            f"## {title}",
+            "",
+            *md_table(head, [[format_cell(c, r[c]) for c in b.columns] for _, r in t.iterrows()]),
+        ]
+    drops = robustness_drops(b)
+    if not drops.empty:
+        lines += ["", f"## {ROBUSTNESS_TITLE}", "", *md_table(list(drops.columns), drops.values.tolist())]
+    scenes = scenes.assign(_rank=scenes["track"].map(track_rank)).sort_values(["_rank", "split"], kind="stable")
+    for (track, split), t in scenes.groupby(["track", "split"], sort=False):
+        rows = [(m, {"method": m}) for m in b[(b.track == track) & (b.split == split)]["method"]]
+        lines += [
+            "",
+            f"## Per scene: {split} ({track} track), each cell @50cm / @25cm",
+            "",
+            paper_table(t, rows, sorted(t["scene"].unique())).rstrip(),
+        ]
+    # map size per (method, track) and scene, from the per-scene rows (runs without maps have none)
+    sizes = scenes.pivot_table(index=["method", "track"], columns="scene", values="map_mb", aggfunc="mean")
+    if not sizes.empty:
+        rows = [[method, track, *(format_cell("map_mb", v) for v in row)] for (method, track), row in sizes.iterrows()]
+        lines += ["", "## Map size per scene [MB]", "", *md_table(["Method", "Track", *sizes.columns], rows)]
+    if difficulty_plots:
+        lines += ["", "## Recall vs difficulty", "", DIFFICULTY_TEXT, ""]
+        lines += [f"![recall vs difficulty]({p})" for p in difficulty_plots]
+    return "\n".join(lines) + "\n"
+
+
+_SORT_JS = """
+document.querySelectorAll('table.sortable th').forEach((th, i) => th.addEventListener('click', () => {
+  const body = th.closest('table').tBodies[0], asc = th.dataset.dir !== 'asc';
+  th.closest('tr').querySelectorAll('th').forEach(h => delete h.dataset.dir); th.dataset.dir = asc ? 'asc' : 'desc';
+  const key = td => { const t = td.textContent.trim(), n = t === '∞' ? Infinity : parseFloat(t);
+                      return t === '-' ? NaN : (isNaN(n) ? t : n); };
+  [...body.rows].sort((a, b) => { const x = key(a.cells[i]), y = key(b.cells[i]);
+      if (Number.isNaN(x)) return 1; if (Number.isNaN(y)) return -1;
+      return (x > y ? 1 : x < y ? -1 : 0) * (asc ? 1 : -1); }).forEach(r => body.appendChild(r));
+}));
+"""
+
+
+def _html_table(title: str, head: list[str], rows: list[list[str]]) -> str:
+    """A titled, sortable, horizontally scrolling table."""
+    cells = "".join("<tr>" + "".join(f"<td>{html.escape(str(v))}</td>" for v in r) + "</tr>" for r in rows)
+    heads = "".join(f"<th>{html.escape(h)}</th>" for h in head)
+    return (
+        f"<h2>{html.escape(title)}</h2>\n"
+        f'<div class="scroll"><table class="sortable"><thead><tr>{heads}</tr></thead><tbody>{cells}</tbody></table></div>\n'
+    )
+
+
+def to_html(b: pd.DataFrame, plots: list[str], versions: str = "", difficulty_plots: Sequence[str] = ()) -> str:
+    """The sortable page: the board's verdict, its tables, the robustness table, ``plots`` side by side
+    and the recall-vs-difficulty plots full width."""
+    head = [BOARD_COLUMNS[c] for c in b.columns]
+    tables = "".join(
+        _html_table(title, head, [[format_cell(c, r[c]) for c in b.columns] for _, r in t.iterrows()])
+        for title, t in _by_track(b)
+    )
+    drops = robustness_drops(b)
+    if not drops.empty:
+        tables += _html_table(ROBUSTNESS_TITLE, list(drops.columns), drops.values.tolist())
+    imgs = "".join(f'<figure><img src="{html.escape(p)}" alt="{html.escape(p)}"></figure>' for p in plots)
+    if difficulty_plots:
+        imgs += f'<h2 class="clear">Recall vs difficulty</h2>\n<p>{html.escape(DIFFICULTY_TEXT)}</p>\n'
+        imgs += "".join(
+            f'<figure><img class="wide" src="{html.escape(p)}" alt="{html.escape(p)}"></figure>'
+            for p in difficulty_plots
+        )
+    return f"""<!doctype html>
+<html lang="en"><head><meta charset="utf-8"><title>{html.escape(_title(versions))}</title>
+<style>
+body {{ font-family: system-ui, sans-serif; margin: 2em; color: #222; }}
+table {{ border-collapse: collapse; font-size: 14px; }}
+.scroll {{ overflow-x: auto; }}
+th, td {{ border: 1px solid #ccc; padding: 4px 8px; text-align: right; }}
+th {{ background: #f0f0f0; cursor: pointer; user-select: none; }}
+th[data-dir=asc]::after {{ content: " ▲"; }} th[data-dir=desc]::after {{ content: " ▼"; }}
+td {{ white-space: nowrap; }} td:first-child, td:nth-child(2), td:nth-child(3) {{ text-align: left; }}
+tr:nth-child(even) {{ background: #fafafa; }}
+img {{ max-width: 48%; float: left; margin: 1%; }}
+img.wide {{ max-width: 98%; float: none; }} .clear {{ clear: both; }}
+.verdict {{ font-size: 16px; background: #eef4fb; border-left: 4px solid #2a6ebb; padding: 8px 12px; }}
+</style></head><body>
+<h1>{html.escape(_title(versions))}</h1>
+<p class="verdict"><strong>{html.escape(verdict_lead())}:</strong> {html.escape(verdict(b))}</p>
+<p>Recall = share of all queries (failed queries count). MTE/MRE = mean error of the queries within the
+threshold. Click a column header to sort. {html.escape(provenance(b))}</p>
+{tables}{imgs}
+<script>{_SORT_JS}</script>
+</body></html>
+"""

@@ -1,0 +1,102 @@
+"""A board's verdict line: per track, who leads on the headline split at 50 and at 25 cm, by how much,
+and at what map size."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import pandas as pd
+
+from openreloc_bench.harness.ablations import ABLATION_ROWS, ablation_label
+from openreloc_bench.harness.leaderboard.rows import HEADLINE_SPLIT, TRACK_NAMES, format_cell, track_groups
+
+DIAGNOSTICS = ("openreloc-oracle-association",)
+"""Rows a board shows that are no method: ``openreloc`` given the true landmark association, which bounds
+what follows the association."""
+ABLATIONS = tuple(ablation_label(r) for r in ABLATION_ROWS)
+"""The labels of ``openreloc``'s ablation variants (``openreloc+<row>``), parts of one method."""
+
+
+def _recall(v: float) -> str:
+    return f"{v:.1f}"
+
+
+def _names(methods: Sequence[str]) -> str:
+    """'a', 'a and b', 'a, b and c'."""
+    return methods[0] if len(methods) == 1 else f"{', '.join(methods[:-1])} and {methods[-1]}"
+
+
+def _leaders(rows: pd.DataFrame, col: str) -> tuple[list[str], float, pd.Series | None]:
+    """The methods with the best ``col`` (equal as the board prints them, to 0.1), that value, and the
+    best of the rest (None when every method ties)."""
+    shown = rows[col].round(1)
+    top = shown.max()
+    rest = rows.assign(_shown=shown)[shown < top].sort_values(["_shown", "method"], ascending=[False, True])
+    return sorted(rows.loc[shown == top, "method"]), top, (rest.iloc[0] if len(rest) else None)
+
+
+def _at(rows: pd.DataFrame, col: str, cm: int) -> tuple[list[str], str, list[str]]:
+    """The leaders on ``col``, 'at 50 cm (66.7 vs b 66.3)' (the best of the rest after 'vs', where there
+    is one) and the methods that names, leaders first."""
+    leaders, top, runner = _leaders(rows, col)
+    vs = "" if runner is None else f" vs {runner.method} {_recall(runner[col])}"
+    return leaders, f"at {cm} cm ({_recall(top)}{vs})", [*leaders, *([] if runner is None else [runner.method])]
+
+
+def _map_size(row: pd.Series) -> str:
+    v = row.get("map_mb", np.nan)
+    return f"{format_cell('map_mb', v)} MB" if pd.notna(v) and v > 0 else "not recorded"
+
+
+def track_verdict(rows: pd.DataFrame) -> str:
+    """Who leads one track's rows (one per method: ``method``, ``recall_50cm``, ``recall_25cm``,
+    ``map_mb``) at 50 cm and at 25 cm, with the recall of the best of the rest, and the map size of every
+    method it names."""
+    rows = rows.drop_duplicates("method")
+    sizes = {r.method: _map_size(r) for _, r in rows.iterrows()}
+    if len(rows) == 1:
+        r = rows.iloc[0]
+        return (
+            f"only {r.method} ran ({_recall(r.recall_50cm)} at 50 cm, {_recall(r.recall_25cm)} at 25 cm; "
+            f"map size {sizes[r.method]})"
+        )
+    lead50, at50, named50 = _at(rows, "recall_50cm", 50)
+    lead25, at25, named25 = _at(rows, "recall_25cm", 25)
+    text = f"{_names(lead50)} {'tie' if len(lead50) > 1 else 'leads'} {at50}"
+    if lead25 == lead50:
+        text += f" and {at25}"
+    else:
+        text += f", {_names(lead25)}{' tie' if len(lead25) > 1 else ''} {at25}"
+    named = list(dict.fromkeys([*named50, *named25]))
+    return f"{text}; map size: {', '.join(f'{m} {sizes[m]}' for m in named)}"
+
+
+def verdict(b: pd.DataFrame, split: str = HEADLINE_SPLIT) -> str:
+    """The board's verdict, one line made from its rows (columns ``method``, ``track``, ``split``,
+    ``recall_50cm``, ``recall_25cm``, ``map_mb``): per track, in the board's order, who leads on ``split``
+    at 50 cm and at 25 cm, by how much, and at what map size (:func:`track_verdict`). Methods that read
+    no masks stand in every track's comparison. :data:`DIAGNOSTICS` and :data:`ABLATIONS` are not weighed
+    (the line says so where the board has some), unless a track holds nothing else."""
+    s = b[b["split"] == split]
+    if s.empty:
+        return f"No method ran the {split} split: no verdict."
+    sentences, aside = [], set()
+    for track, rows in track_groups(s):
+        out = rows["method"].isin([*DIAGNOSTICS, *ABLATIONS]).to_numpy()
+        if out.all():  # nothing else on the track: weigh what there is
+            out = np.zeros(len(rows), dtype=bool)
+        aside |= set(rows.loc[out, "method"])
+        sentences.append(f"{TRACK_NAMES.get(track, f'{track} track')}: {track_verdict(rows[~out])}.")
+    skipped = [f"the diagnostic {m}" for m in sorted(aside & set(DIAGNOSTICS))]
+    if aside & set(ABLATIONS):
+        n = len(aside & set(ABLATIONS))
+        skipped.append(f"{n} ablation variant{'s' if n > 1 else ''} of openreloc")
+    if skipped:
+        sentences.append(f"Not weighed: {_names(skipped)}.")
+    return " ".join(sentences)
+
+
+def verdict_lead(split: str = HEADLINE_SPLIT) -> str:
+    """What a board's verdict line is headed with."""
+    return f"Verdict ({split} split, recall [%])"

@@ -1,0 +1,45 @@
+"""Boards written whole: recall against each difficulty axis and the data version they score."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pandas as pd
+
+from openreloc_bench.harness.leaderboard import write_leaderboard
+from openreloc_bench.harness.leaderboard.plots import plot_recall_vs_difficulty
+from openreloc_bench.harness.leaderboard.rows import data_versions
+from openreloc_bench.harness.tables import backfill_difficulty
+from tests.harness.leaderboard.boards import results_dir
+
+
+def test_boards_plot_recall_against_each_difficulty_axis_with_values(tmp_path: Path) -> None:
+    out = tmp_path / "board"
+    files = write_leaderboard([results_dir(tmp_path / "r", "m")], out)
+    png = out / "plots" / "difficulty_predicted.png"
+    assert png in files and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    md = (out / "leaderboard.md").read_text()
+    assert md.startswith("# openreloc-bench leaderboard (data v2)\n")
+    assert "## Recall vs difficulty" in md and "![recall vs difficulty](plots/difficulty_predicted.png)" in md
+    page = (out / "index.html").read_text()
+    assert "<h1>openreloc-bench leaderboard (data v2)</h1>" in page and 'src="plots/difficulty_predicted.png"' in page
+    numbers = pd.read_csv(out / "difficulty.csv").set_index(["axis", "bin"])
+    # pooled over both splits: gap 0.1 m twice per split (errors 0.1, 0.1, 0.3, 0.6 m); light 1 and 0.5 vary
+    assert numbers.loc[("gap_m", "0–0.25"), ["n", "recall_50cm", "recall_25cm"]].tolist() == [4, 75, 50]
+    assert numbers.loc[("light_level", "0.5"), ["n", "recall_50cm", "recall_25cm"]].tolist() == [4, 50, 0]
+    drawn = plot_recall_vs_difficulty(numbers.reset_index(), "predicted track", tmp_path / "p.png")
+    assert drawn == ["gap_m", "light_level", "lookalikes_in_view"]  # all NaN or one value: no panel
+
+
+def test_boards_name_the_data_version_they_score(tmp_path: Path) -> None:
+    out = tmp_path / "board"
+    write_leaderboard([results_dir(tmp_path / "old", "m", versioned=False)], out)
+    md = (out / "leaderboard.md").read_text()
+    assert md.startswith("# openreloc-bench leaderboard (data v1)\n")  # tables without the column: v1 data
+    assert "Recall vs difficulty" not in md and not (out / "plots" / "difficulty_predicted.png").exists()
+    q = pd.DataFrame({"spec_hash": ["a", "file:0f3e", "b"], "data_version": [2, 2, 2]})
+    assert (
+        data_versions(backfill_difficulty(q.drop(columns="data_version"))) == "data v1, scenes without a data version"
+    )
+    assert data_versions(q.assign(data_version=[1, 2, 2])) == "data v1 + v2"
+    assert data_versions(q) == "data v2"

@@ -1,0 +1,72 @@
+"""The board's rows: robustness changes, the provenance line and recall per difficulty bin."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from openreloc_bench.harness.leaderboard.rows import binned_recall, provenance, robustness_drops
+from tests.harness.leaderboard.boards import errors
+
+
+def rows(method: str, track: str, recalls: dict[str, tuple[float, float]], seeds: dict[str, int]) -> pd.DataFrame:
+    return pd.DataFrame(
+        [
+            {"method": method, "track": track, "split": split, "recall_50cm": r50, "recall_25cm": r25,
+             "n_seeds": seeds.get(split, 1), "git_commit": "abc"}
+            for split, (r50, r25) in recalls.items()
+        ]
+    )  # fmt: skip
+
+
+def test_drops_are_changes_from_the_query_split_in_points() -> None:
+    b = pd.concat(
+        [
+            rows("m", "predicted", {"query": (40.0, 30.0), "query_light4": (35.5, 30.0)}, {}),
+            rows("m", "oracle-mask", {"query": (90.0, 80.0), "query_displaced": (91.0, 79.0)}, {"query": 3}),
+            rows("only-query", "predicted", {"query": (10.0, 5.0)}, {}),
+        ]
+    )
+    d = robustness_drops(b).set_index(["Method", "Track"])
+    assert list(d.index) == [("m", "predicted"), ("m", "oracle-mask")]  # a method run on the query split only has none
+    assert d.loc[("m", "predicted"), "query"] == "40.0 / 30.0"
+    assert d.loc[("m", "predicted"), "query_light4"] == "-4.5 / +0.0"
+    assert d.loc[("m", "predicted"), "query_displaced"] == "-"
+    assert d.loc[("m", "oracle-mask"), "query_displaced"] == "+1.0 / -1.0 (over 1 seed(s))"  # query pooled 3 seeds
+    assert "query_light1" not in d.columns  # no method ran it
+
+
+def test_provenance_names_one_commit_or_each() -> None:
+    one = rows("m", "predicted", {"query": (1.0, 1.0)}, {})
+    assert provenance(one) == "Every row comes from commit abc."
+    two = pd.concat([one, one.assign(git_commit="def")])
+    assert provenance(two) == "Rows from 2 commits (see the Commit column): abc, def."
+
+
+def test_binned_recall_counts_queries_and_pools_seeds_per_bin() -> None:
+    q = pd.DataFrame(
+        {
+            "track": "predicted", "method": ["a"] * 6 + ["b"] * 2 + ["c"] * 2, "scene": "s", "split": "query",
+            "query": [f"query/{i:06d}" for i in (0, 1, 2, 3, 4, 5, 0, 1, 0, 0)],  # c: one query, two seeds
+            **errors([0.1, 0.4, 0.2, np.inf, 0.1, 0.3, 0.6, 0.2, 0.1, 0.4]),
+            "gap_m": [0.1, 0.2, 0.3, 0.6, np.nan, 3.0, 0.1, 0.2, 0.1, 0.1],
+            "visible_objects": [0, 1, 2, 5, 3, 9, 0, 1, 0, 0],
+            "light_level": [1.0, 0.5, 0.5, 1.0, 1.0, 1.0, 1.0, 0.5, 1.0, 1.0],
+        }
+    )  # fmt: skip
+    gap = binned_recall(q, "gap_m", (0, 0.25, 0.5, 2)).set_index(["method", "bin"])
+    assert list(gap.loc["a"].index) == ["0–0.25", "0.25–0.5", "0.5–2"]  # no value, or past the last edge: left out
+    assert gap.loc["a", ["n", "recall_50cm", "recall_25cm"]].values.tolist() == [[2, 100, 50], [1, 100, 100], [1, 0, 0]]
+    assert gap.loc[("a", "0.5–2"), ["lo", "hi"]].tolist() == [0.5, 2.0] and set(gap["axis"]) == {"gap_m"}
+    assert gap.loc[("b", "0–0.25"), ["n", "recall_50cm", "recall_25cm"]].tolist() == [2, 50, 50]
+    assert gap.loc[("c", "0–0.25"), ["n", "recall_50cm", "recall_25cm"]].tolist() == [1, 100, 50]
+    objects = binned_recall(q[q["method"] == "a"], "visible_objects", (0, 1, 2, 4, np.inf)).set_index("bin")
+    assert list(objects.index) == ["0", "1", "2–3", "4+"]  # whole numbers: the counts a bin holds
+    assert objects.loc["4+", ["n", "recall_50cm", "recall_25cm"]].tolist() == [2, 50, 0]
+    light = binned_recall(q[q["method"] == "a"], "light_level", None).set_index("bin")
+    assert list(light.index) == ["0.5", "1"] and light["n"].tolist() == [2, 4] and light.loc["0.5", "lo"] == 0.5
+    with pytest.raises(ValueError, match="increasing edges"):
+        binned_recall(q, "gap_m", (0, 0.5, 0.25))
+    with pytest.raises(ValueError, match="no column 'gap_deg'"):
+        binned_recall(q, "gap_deg", (0, 10))

@@ -23,6 +23,7 @@ from openreloc_bench.data import mapfile, paths
 from openreloc_bench.data.scene import Scene
 from openreloc_bench.harness.cache import dir_bytes
 from openreloc_bench.methods import create_method, recorded_track
+from openreloc_bench.tracks import ORACLE_MASK
 
 NAME = "map"
 HELP = "build a method's map from a scene's mapping split"
@@ -42,7 +43,7 @@ def run(args: argparse.Namespace) -> int:
     scene = Scene(args.scene)
     seq = scene.sequence("mapping")
     track = recorded_track(method, args.track)
-    seq.load_instances = track == "oracle-mask"
+    seq.load_instances = track == ORACLE_MASK
     # the directory holds the map alone (its size is the map's): a previous map there is replaced,
     # anything else is refused; no other map build writes into it meanwhile
     with paths.directory_lock(args.out, "openreloc-bench map", in_directory=False):

@@ -32,16 +32,11 @@ from openreloc_bench.data import io
 from openreloc_bench.data.types import FrameRecord, SceneSequence, check_intrinsics
 from openreloc_bench.errors import DataError
 
-SPLITS = (
-    "mapping",
-    "query",
-    "query_light1",
-    "query_light2",
-    "query_light3",
-    "query_light4",
-    "query_displaced",
-    "query_near",
-)
+LIGHT_SPLITS = ("query", "query_light1", "query_light2", "query_light3", "query_light4")
+"""The query split and its relit copies, by light level (0: the scene's own lights, up to 4), on the same poses."""
+DISPLACED_SPLIT = "query_displaced"
+"""The query split's poses with some objects moved."""
+SPLITS = ("mapping", *LIGHT_SPLITS, DISPLACED_SPLIT, "query_near")
 QUERY_SPLITS = SPLITS[1:]
 
 DATA_VERSION = 2

@@ -16,11 +16,10 @@ from typing import Any
 
 import numpy as np
 
-from openreloc_bench import geometry
 from openreloc_bench.data.scene import Scene
 from openreloc_bench.envs.scenes import locked, scene_key
 from openreloc_bench.harness import cache
-from openreloc_bench.methods import Failure, PoseEstimate, QueryFrame, create_method, map_config
+from openreloc_bench.methods import QueryFrame, create_method, localize_safely, map_config
 
 log = logging.getLogger(__name__)
 
@@ -67,19 +66,6 @@ class InLoopRelocalizer:
         """Ask the method about one view. A method that raises or answers nonsense fails this view (with
         the reason), as in the harness: a bug in a method must not end a training run."""
         self.ensure_loaded()
-        try:
-            res = self.method.localize(QueryFrame(name, rgb, K, instance))
-        except Exception as e:  # noqa: BLE001 -- reported as this view's failure
-            log.debug("relocalizer raised", exc_info=True)
-            return Estimate(None, 0, f"raised {type(e).__name__}: {e}"[:300])
-        diagnostics = res.diagnostics if isinstance(res, (PoseEstimate, Failure)) else {}
-        matches = diagnostics.get("matches")
-        matched = len(matches) if isinstance(matches, list) else 0
-        if res is None or isinstance(res, Failure):
-            return Estimate(None, matched, res.reason if res is not None else "no estimate")
-        if not isinstance(res, PoseEstimate):
-            return Estimate(None, 0, f"invalid return type {type(res).__name__}")
-        T = np.asarray(res.T_wc, dtype=np.float64)
-        if T.shape != (4, 4) or not geometry.is_rigid(T):
-            return Estimate(None, matched, "invalid pose (not a finite rigid 4x4 transform)")
-        return Estimate(T, matched)
+        answer = localize_safely(self.method, QueryFrame(name, rgb, K, instance))
+        matches = answer.diagnostics.get("matches")
+        return Estimate(answer.T_wc, len(matches) if isinstance(matches, list) else 0, answer.reason)

@@ -30,9 +30,10 @@ from openreloc_bench.data.scene import Scene
 from openreloc_bench.data.types import SceneSequence
 from openreloc_bench.harness.cache import build_map_cached, config_hash
 from openreloc_bench.harness.metrics import summarize
-from openreloc_bench.methods import DEFAULT_TRACK, Failure, PoseEstimate, QueryFrame, create_method
+from openreloc_bench.methods import Failure, PoseEstimate, QueryFrame, create_method
 from openreloc_bench.openreloc.map import ObjectMap
 from openreloc_bench.openreloc.mapping import box_point_labels, boxed_objects
+from openreloc_bench.tracks import DEFAULT_TRACK, PREDICTED, Track
 from openreloc_bench.vision import create_segmenter
 from openreloc_bench.vision.base import ObjectMask, Segmenter, label_image
 from openreloc_bench.vision.segmenter_training import frame_metrics
@@ -47,7 +48,7 @@ BOUNDARY_TOLERANCE_PX = 2
 class DiagnoseOptions:
     """What ``diagnose`` measures."""
 
-    track: str = DEFAULT_TRACK
+    track: Track = DEFAULT_TRACK
     """'predicted' (the method's segmenter on map and queries) or 'oracle-mask' (the dataset's masks)."""
     splits: tuple[str, ...] = ("query",)
     """Query splits to segment and localize."""
@@ -176,12 +177,12 @@ def diagnose_scene(
 ) -> dict[str, Any]:
     """Every stage's numbers for one scene (see the module docstring)."""
     scene = Scene(scene_dir)
-    masks = "predicted" if options.track == "predicted" else "dataset"
+    masks = "predicted" if options.track == PREDICTED else "dataset"
     method, map_dir, stats = _map(scene, overrides, masks, work_dir)
     out: dict[str, Any] = {"scene": scene.name, "track": options.track, "map": stats.get("instance_quality") or {}}
     out["map"]["landmarks"] = stats.get("landmarks")
     out["map"]["seconds"] = stats.get("timings_s", {}).get("total")
-    if options.track == "predicted":
+    if options.track == PREDICTED:
         segmenter = create_segmenter(method.config.segmenter, **method.config.segmenter_options)
         out["segmentation"] = {
             split: segmentation_quality(scene.sequence(split), segmenter, options.frames) for split in options.splits
@@ -190,7 +191,7 @@ def diagnose_scene(
         out["localization"] = {
             split: localization_quality(method, map_dir, scene, split, masks, progress) for split in options.splits
         }
-    if options.swap and options.track == "predicted":
+    if options.swap and options.track == PREDICTED:
         other, other_dir, _ = _map(scene, overrides, "dataset", work_dir)
         out["swap"] = {
             "dataset map + predicted queries": {

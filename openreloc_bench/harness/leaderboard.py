@@ -40,7 +40,8 @@ from openreloc_bench.harness.tables import (  # noqa: E402
     pool_seeds,
     read_query_csv,
 )
-from openreloc_bench.methods import MASK_FREE, uses_masks  # noqa: E402
+from openreloc_bench.methods import uses_masks  # noqa: E402
+from openreloc_bench.tracks import MASK_FREE  # noqa: E402
 
 log = logging.getLogger(__name__)
 

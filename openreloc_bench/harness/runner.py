@@ -34,7 +34,7 @@ import numpy as np
 import pandas as pd
 from tqdm import tqdm
 
-from openreloc_bench import bars, geometry, plugins
+from openreloc_bench import bars, plugins
 from openreloc_bench.data import io, paths
 from openreloc_bench.data.results import write_results, write_tum
 from openreloc_bench.data.scene import Scene
@@ -51,19 +51,16 @@ from openreloc_bench.harness.score import (
 )
 from openreloc_bench.harness.tables import backfill_difficulty, read_query_csv
 from openreloc_bench.methods import (
-    DEFAULT_TRACK,
-    MASK_FREE,
-    TRACKS,
-    Failure,
-    PoseEstimate,
     QueryFrame,
     Relocalizer,
     create_method,
+    localize_safely,
     map_config,
     method_config,
     recorded_track,
     uses_masks,
 )
+from openreloc_bench.tracks import DEFAULT_TRACK, MASK_FREE, ORACLE_MASK, TRACKS, RecordedTrack, Track
 
 log = logging.getLogger(__name__)
 
@@ -101,7 +98,7 @@ class MapJob:
     scene_dir: Path
     map_dir: Path
     spec_hash: str
-    track: str
+    track: RecordedTrack
     """The mapping frames carry the dataset's instance masks only in the oracle-mask track (never in
     ``mask-free``)."""
     timeout_s: float
@@ -117,7 +114,7 @@ class QueryJob:
     run: MethodRun
     scene_dir: Path
     split: str
-    track: str
+    track: RecordedTrack
     """The recorded track: the queries carry the dataset's instance masks only in ``oracle-mask``."""
     map_dir: Path
     out_dir: Path
@@ -140,30 +137,10 @@ class QueryJob:
 # --------------------------------------------------------------------------------------------
 
 
-def query_frame(seq: SceneSequence, i: int, track: str) -> QueryFrame:
-    """What the method sees: RGB + K, plus the dataset's instance masks in the oracle-mask track."""
-    f = seq[i]
-    return QueryFrame(f.name, f.color, f.K, f.instance if track == "oracle-mask" else None)
-
-
 def localize_one(method: Relocalizer, query: QueryFrame) -> Outcome:
-    """Call the method once, timing only its own call; any exception or bad answer is a failure."""
-    t0 = time.perf_counter()
-    try:
-        res = method.localize(query)
-    except Exception as e:  # noqa: BLE001 -- a method bug fails this query, not the run
-        return Outcome(query.name, None, time.perf_counter() - t0, f"raised {type(e).__name__}: {e}"[:300])
-    dt = time.perf_counter() - t0
-    if res is None:
-        return Outcome(query.name, None, dt, "no estimate")
-    if isinstance(res, Failure):
-        return Outcome(query.name, None, dt, res.reason or "failure")
-    if not isinstance(res, PoseEstimate):
-        return Outcome(query.name, None, dt, f"invalid return type {type(res).__name__}")
-    T = np.asarray(res.T_wc, dtype=np.float64)
-    if T.shape != (4, 4) or not geometry.is_rigid(T):
-        return Outcome(query.name, None, dt, "invalid pose (not a finite rigid 4x4 transform)")
-    return Outcome(query.name, T, dt)
+    """Call the method once (:func:`~openreloc_bench.methods.localize_safely`) as a row to score."""
+    answer = localize_safely(method, query)
+    return Outcome(answer.name, answer.T_wc, answer.seconds, answer.reason)
 
 
 def _load_method(job: QueryJob) -> tuple[Relocalizer, SceneSequence, float]:
@@ -172,7 +149,7 @@ def _load_method(job: QueryJob) -> tuple[Relocalizer, SceneSequence, float]:
     t0 = time.perf_counter()
     method.load_map(job.map_dir)
     seq = Scene(job.scene_dir).sequence(job.split)
-    seq.load_instances = job.track == "oracle-mask"
+    seq.load_instances = job.track == ORACLE_MASK
     return method, seq, time.perf_counter() - t0
 
 
@@ -185,7 +162,7 @@ def _serve(conn: Any, job: QueryJob) -> None:
         return
     conn.send(("ready", load_s))
     while (i := conn.recv()) is not None:
-        conn.send(localize_one(method, query_frame(seq, i, job.track)))
+        conn.send(localize_one(method, QueryFrame.from_frame(seq[i], job.track)))
 
 
 class QueryServer:
@@ -263,7 +240,8 @@ def _localize_all(job: QueryJob) -> tuple[SceneSequence, dict[str, Outcome], flo
     if job.timeout_s <= 0:
         method, seq, load_s = _load_method(job)
         outcomes = {
-            n: _localized(localize_one(method, query_frame(seq, i, job.track))) for i, n in enumerate(seq.names)
+            n: _localized(localize_one(method, QueryFrame.from_frame(seq[i], job.track)))
+            for i, n in enumerate(seq.names)
         }
         return seq, outcomes, load_s
     seq = Scene(job.scene_dir).sequence(job.split)
@@ -324,7 +302,7 @@ def _build_map(job: MapJob) -> dict[str, Any]:
         method = create_method(job.run.method, **job.run.overrides)
         paths.check_output(job.map_dir, [job.scene_dir], "map directory")
         mapping = Scene(job.scene_dir).sequence("mapping")
-        mapping.load_instances = job.track == "oracle-mask"
+        mapping.load_instances = job.track == ORACLE_MASK
         with bars.quiet():  # the evaluation's bar counts the frames
             return cache.build_map_cached(method, mapping, job.map_dir, job.spec_hash, job.provenance)
     except Exception as e:  # noqa: BLE001 -- reported per job; other jobs go on
@@ -396,7 +374,7 @@ class EvalConfig:
     """Method variants to evaluate."""
     splits: list[str] = field(default_factory=lambda: ["query"])
     """Query splits to localize."""
-    track: str = DEFAULT_TRACK
+    track: Track = DEFAULT_TRACK
     """``oracle-mask`` (queries carry the dataset's instance masks) or ``predicted`` (RGB only)."""
     executor: str = "local"
     """``local`` (process pool; inline with one worker) or ``ray``."""
@@ -455,7 +433,7 @@ def plan(cfg: EvalConfig) -> tuple[list[MapJob], list[QueryJob]]:
             # an incomplete or inconsistent scene fails here, before any work
             sizes[name, split] = len(scene.sequence(split))
         scene.difficulty()  # so does a broken difficulty table (the query tables join it)
-        if cfg.track == "oracle-mask":
+        if cfg.track == ORACLE_MASK:
             for split in cfg.splits:
                 if not (scene.root / split / "instance").is_dir():
                     raise DataError(scene.root / split, "no instance masks: use --track predicted")

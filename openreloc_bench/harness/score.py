@@ -17,7 +17,7 @@ from openreloc_bench.data.results import hloc_name, read_submission
 from openreloc_bench.data.scene import DIFFICULTY_COLUMNS, Scene
 from openreloc_bench.data.types import SceneSequence
 from openreloc_bench.errors import DataError
-from openreloc_bench.methods import MASK_FREE
+from openreloc_bench.tracks import MASK_FREE
 
 QUERY_COLUMNS = (
     "query", "success", "t_err_m", "r_err_deg", "runtime_s", "reason",

@@ -24,11 +24,12 @@ from tqdm import tqdm
 
 from openreloc_bench import geometry
 from openreloc_bench.commands.options import TRACK_HELP, add_method_arguments, add_track_argument, method_overrides
-from openreloc_bench.data import io, mapfile, paths
+from openreloc_bench.data import io, paths
 from openreloc_bench.data.results import write_results
 from openreloc_bench.data.scene import QUERY_SPLITS, Scene
 from openreloc_bench.data.types import SceneSequence
 from openreloc_bench.errors import ConfigError
+from openreloc_bench.harness.cache import check_map_source
 from openreloc_bench.methods import Answer, QueryFrame, Relocalizer, create_method, localize_safely, recorded_track
 from openreloc_bench.tracks import ORACLE_MASK, RecordedTrack
 
@@ -101,7 +102,7 @@ def run(args: argparse.Namespace) -> int:
     scene = Scene(args.scene)
     seq = scene.sequence(args.split)
     track = recorded_track(method, args.track)
-    mapfile.check_map_scene(args.map, scene, track)
+    check_map_source(args.map, scene, track)
     method.load_map(args.map)
     seq.load_instances = track == ORACLE_MASK
     records = localize_split(method, seq, track)

@@ -2,7 +2,7 @@
 and cached, then one ``localize`` call per view the environment asks about.
 
 Maps go to ``<cache>/maps/<method>/<map config hash>/<scene>-<spec hash>/`` through the harness's
-:func:`~openreloc_bench.harness.cache.build_map_cached` (the same completion record, so a map is
+:func:`~openreloc_bench.harness.cache.cached_map` (the same completion record, so a map is
 rebuilt when the scene's spec changes), under a lock so that the workers of a vector environment
 build it once between them.
 """
@@ -20,6 +20,7 @@ from openreloc_bench.data.scene import Scene
 from openreloc_bench.envs.scenes import locked, scene_key
 from openreloc_bench.harness import cache
 from openreloc_bench.methods import QueryFrame, create_method, localize_safely, map_config
+from openreloc_bench.tracks import ORACLE_MASK
 
 log = logging.getLogger(__name__)
 
@@ -56,9 +57,7 @@ class InLoopRelocalizer:
             if cache.read_map_record(self.map_dir, self.scene.spec_hash) is None:
                 log.info("building the %s map of %s (once; cached in %s)", self.name, self.scene.name, self.map_dir)
             extra = {"method": self.name, "scene": self.scene.name, "map_config": map_config(self.method)}
-            cache.build_map_cached(
-                self.method, self.scene.sequence("mapping"), self.map_dir, self.scene.spec_hash, extra
-            )
+            cache.cached_map(self.method, self.scene, ORACLE_MASK, self.map_dir, extra)
         self.method.load_map(self.map_dir)
         self._loaded = True
 

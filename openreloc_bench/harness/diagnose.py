@@ -28,12 +28,12 @@ from openreloc_bench import geometry
 from openreloc_bench.bars import tqdm
 from openreloc_bench.data.scene import Scene
 from openreloc_bench.data.types import SceneSequence
-from openreloc_bench.harness.cache import build_map_cached, config_hash
+from openreloc_bench.harness.cache import cached_map, map_key
 from openreloc_bench.harness.metrics import summarize
 from openreloc_bench.methods import Failure, PoseEstimate, QueryFrame, create_method
 from openreloc_bench.openreloc.map import ObjectMap
 from openreloc_bench.openreloc.mapping import box_point_labels, boxed_objects
-from openreloc_bench.tracks import DEFAULT_TRACK, PREDICTED, Track
+from openreloc_bench.tracks import DEFAULT_TRACK, ORACLE_MASK, PREDICTED, Track
 from openreloc_bench.vision import create_segmenter
 from openreloc_bench.vision.base import ObjectMask, Segmenter, label_image
 from openreloc_bench.vision.segmenter_training import frame_metrics
@@ -161,14 +161,11 @@ def localization_quality(
 
 
 def _map(scene: Scene, overrides: dict[str, Any], masks: str, work_dir: Path) -> tuple[Any, Path, dict[str, Any]]:
-    """The method and its map of ``scene`` from the dataset's masks or the segmenter's."""
+    """The method and its map of ``scene`` from the dataset's masks or the segmenter's, cached as eval's."""
     method = create_method("openreloc", **overrides)
-    mapping = scene.sequence("mapping")
-    mapping.load_instances = masks == "dataset"
-    map_dir = work_dir / "maps" / scene.name / masks
-    map_dir.parent.mkdir(parents=True, exist_ok=True)
-    spec = {"scene": scene.spec_hash, "masks": masks, "map": method.map_config()}
-    build_map_cached(method, mapping, map_dir, config_hash(spec), {"scene": scene.name})
+    track = ORACLE_MASK if masks == "dataset" else PREDICTED
+    map_dir = work_dir / "maps" / method.name / map_key(method, track) / scene.name
+    cached_map(method, scene, track, map_dir, {"scene": scene.name})
     return method, map_dir, ObjectMap.load(map_dir).stats
 
 

@@ -55,7 +55,6 @@ from openreloc_bench.methods import (
     Relocalizer,
     create_method,
     localize_safely,
-    map_config,
     method_config,
     recorded_track,
     uses_masks,
@@ -301,10 +300,8 @@ def _build_map(job: MapJob) -> dict[str, Any]:
         plugins.load_plugins(job.plugins)
         method = create_method(job.run.method, **job.run.overrides)
         paths.check_output(job.map_dir, [job.scene_dir], "map directory")
-        mapping = Scene(job.scene_dir).sequence("mapping")
-        mapping.load_instances = job.track == ORACLE_MASK
         with bars.quiet():  # the evaluation's bar counts the frames
-            return cache.build_map_cached(method, mapping, job.map_dir, job.spec_hash, job.provenance)
+            return cache.cached_map(method, Scene(job.scene_dir), job.track, job.map_dir, job.provenance)
     except Exception as e:  # noqa: BLE001 -- reported per job; other jobs go on
         log.debug("map job failed", exc_info=True)
         return {"error": f"{type(e).__name__}: {e}"}
@@ -445,7 +442,7 @@ def plan(cfg: EvalConfig) -> tuple[list[MapJob], list[QueryJob]]:
         mcfg = method_config(method)
         chash = cache.config_hash(mcfg)
         track = recorded_track(method, cfg.track)  # also which masks the map is built from
-        map_hash = cache.config_hash({**map_config(method), "masks": track})
+        map_hash = cache.map_key(method, track)
         for name, scene in scenes.items():
             spec = scene.spec_hash
             # rebuilt (removed first) when stale: confined to the cache, whatever a plugin names its method

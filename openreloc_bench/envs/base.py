@@ -156,7 +156,9 @@ class IndoorEnv(gym.Env, EzPickle):
             self.scene = Scene(resolve_scene(cfg.scene, cfg.suite, cfg.cache_dir))
             self.scene_spec = scene_spec(self.scene)
             self.relocalizer = (
-                InLoopRelocalizer(cfg.method, cfg.method_options, self.scene, self._cache) if cfg.method else None
+                InLoopRelocalizer(cfg.method, cfg.method_options, self.scene, self._cache, cfg.track)
+                if cfg.method
+                else None
             )
             if self.relocalizer is not None and "mapping" not in self.scene.splits():
                 raise ConfigError(f"scene {self.scene.root} has no 'mapping' split (the relocalizer's map needs it)")

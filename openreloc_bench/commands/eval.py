@@ -25,12 +25,14 @@ from pathlib import Path
 from openreloc_bench import config
 from openreloc_bench.commands.options import TRACK_HELP, add_plugin_argument, add_track_argument
 from openreloc_bench.data import paths
+from openreloc_bench.data.runs import load_map_records, load_run_queries
 from openreloc_bench.data.scene import QUERY_SPLITS
 from openreloc_bench.errors import ConfigError
 from openreloc_bench.harness import runner, tables
 from openreloc_bench.harness.ablations import ABLATED_METHOD, ROBUSTNESS_ROWS
 from openreloc_bench.harness.executors import EXECUTORS
 from openreloc_bench.harness.suites import ensure_suite_scenes
+from openreloc_bench.methods import uses_masks
 
 NAME = "eval"
 HELP = "evaluate methods on a scene suite (maps, queries, metrics)"
@@ -152,11 +154,11 @@ def run(args: argparse.Namespace) -> int:
         timeout_s=args.timeout, map_timeout_s=args.map_timeout, plugins=args.plugin, seeds=seeds,
     )  # fmt: skip
     report = runner.evaluate(cfg)
-    queries = runner.load_run_queries(args.out)
+    queries = load_run_queries(args.out, uses_masks)
     if report.jobs_stale:
         print(f"resume: {report.jobs_stale} finished job(s) were run with other settings or scenes and were recomputed")
     if not queries.empty:
-        _, suite, seeds = tables.write_tables(args.out / "tables", queries, runner.load_map_records(args.out))
+        _, suite, seeds = tables.write_tables(args.out / "tables", queries, load_map_records(args.out))
         print(tables.compact(suite))
         if not seeds.empty:
             print(tables.compact_seeds(seeds))

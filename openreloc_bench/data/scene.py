@@ -61,6 +61,8 @@ smallest rotation (deg) to a mapping frame within 1 m, the split's light level (
 the non-structural objects covering at least 0.5% of the image, the image share all of them cover, how
 many of the visible ones were moved (``query_displaced``) and how many have an identical twin in the
 scene."""
+DIFFICULTY_AXES = DIFFICULTY_COLUMNS[2:]
+"""The difficulty columns of the per-query tables, joined from each scene's ``difficulty.csv``."""
 STRUCTURAL_CATEGORIES = frozenset(
     {"wall", "floor", "ceiling", "door", "doorway", "window", "stairs", "railing", "baseboard", "column"}
 )

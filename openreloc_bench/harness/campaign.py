@@ -21,6 +21,7 @@ import pandas as pd
 
 from openreloc_bench import config, plugins
 from openreloc_bench.data import io, paths
+from openreloc_bench.data.runs import load_map_records, load_run_queries
 from openreloc_bench.data.scene import QUERY_SPLITS
 from openreloc_bench.errors import ConfigError, DataError
 from openreloc_bench.harness import cache, runner, tables
@@ -331,10 +332,10 @@ def render(cfg: CampaignConfig, ledger: Ledger, say: Callable[[str], None]) -> N
     summaries = []
     for suite in cfg.plan.suites:
         results = cfg.work / suite
-        queries = runner.load_run_queries(results) if results.is_dir() else pd.DataFrame()
+        queries = load_run_queries(results, uses_masks) if results.is_dir() else pd.DataFrame()
         if queries.empty:
             continue
-        tables.write_tables(results / "tables", queries, runner.load_map_records(results))
+        tables.write_tables(results / "tables", queries, load_map_records(results))
         board = cfg.out / suite
         write_leaderboard([results], board, cfg.data)
         for abl in sorted((results / "tables").glob("ablations_*.md")):

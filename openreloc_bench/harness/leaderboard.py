@@ -26,19 +26,17 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
 from openreloc_bench.data import io, paths  # noqa: E402
+from openreloc_bench.data.runs import QUERY_COLUMNS, backfill_difficulty, load_map_records, read_query_csv  # noqa: E402
 from openreloc_bench.data.scene import Scene  # noqa: E402
 from openreloc_bench.errors import DataError  # noqa: E402
 from openreloc_bench.harness.ablations import ABLATION_ROWS, ROBUSTNESS_ROWS, ablation_label  # noqa: E402
 from openreloc_bench.harness.metrics import cumulative_curve, summarize  # noqa: E402
-from openreloc_bench.harness.score import QUERY_COLUMNS  # noqa: E402
 from openreloc_bench.harness.tables import (  # noqa: E402
     SCENE_KEYS,
-    backfill_difficulty,
     build_tables,
     md_table,
     paper_table,
     pool_seeds,
-    read_query_csv,
 )
 from openreloc_bench.methods import uses_masks  # noqa: E402
 from openreloc_bench.tracks import MASK_FREE  # noqa: E402
@@ -105,8 +103,6 @@ def _last_run_per_query(q: pd.DataFrame) -> pd.DataFrame:
 
 
 def load_maps(results: list[Path]) -> pd.DataFrame:
-    from openreloc_bench.harness.runner import load_map_records
-
     return pd.concat([load_map_records(r) for r in results], ignore_index=True)
 
 

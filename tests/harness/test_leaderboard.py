@@ -9,6 +9,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from openreloc_bench.data.runs import backfill_difficulty
+from openreloc_bench.data.scene import DIFFICULTY_AXES
 from openreloc_bench.harness.leaderboard import (
     ABLATIONS,
     binned_recall,
@@ -30,8 +32,6 @@ from openreloc_bench.harness.leaderboard import (
     verdict,
     write_leaderboard,
 )
-from openreloc_bench.harness.score import DIFFICULTY_AXES
-from openreloc_bench.harness.tables import backfill_difficulty
 from tests.generators.test_preview import write_plan_scene
 
 

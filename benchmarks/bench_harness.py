@@ -20,6 +20,7 @@ import numpy as np
 
 from openreloc_bench import geometry
 from openreloc_bench.data import io
+from openreloc_bench.data.runs import load_map_records
 from openreloc_bench.data.scene import SceneWriter
 from openreloc_bench.harness import runner
 
@@ -76,7 +77,7 @@ def main() -> None:
             assert not report.errors, report.errors
             markers = [io.read_json(p) for p in out.glob("runs/*/*/*/*.done.json")]
             method_s = sum(m["load_map_s"] + m["localize_s"] for m in markers)
-            method_s += float(runner.load_map_records(out)["mapping_time_s"].sum())
+            method_s += float(load_map_records(out)["mapping_time_s"].sum())
             over = wall - method_s
             print(f"{mode:28s} {wall:8.2f} {method_s:9.2f} {over:11.2f} {1000 * over / n_q:13.1f}")
 

@@ -2,7 +2,7 @@
 table). ``--map`` and ``--scene`` may repeat, in pairs: the table then pools every scene's queries.
 
   .venv/bin/python benchmarks/bench_localize.py --map MAPDIR --scene DIR/<scene> [--map ... --scene ...]
-      [--split query] [--method openreloc] [--track oracle-mask] [--set key=value ...] [--threads 1]
+      [--split query] [--method openreloc] [--track predicted|oracle-mask] [--set key=value ...] [--threads 1]
 """
 
 from __future__ import annotations
@@ -19,6 +19,7 @@ from openreloc_bench.config import parse_overrides
 from openreloc_bench.data.scene import Scene
 from openreloc_bench.methods import create_method
 from openreloc_bench.openreloc.method import STAGES
+from openreloc_bench.tracks import DEFAULT_TRACK, TRACKS
 
 
 def main() -> None:
@@ -27,7 +28,7 @@ def main() -> None:
     p.add_argument("--scene", type=Path, action="append", required=True, help="the scene the map is of")
     p.add_argument("--split", default="query")
     p.add_argument("--method", default="openreloc")
-    p.add_argument("--track", default="oracle-mask", choices=("oracle-mask", "predicted"))
+    p.add_argument("--track", default=DEFAULT_TRACK, choices=TRACKS)
     p.add_argument("--set", dest="overrides", action="append", default=[])
     p.add_argument("--threads", type=int, default=1, help="torch threads (the 2-core target machine: 1)")
     args = p.parse_args()

@@ -37,12 +37,13 @@ from openreloc_bench import geometry
 from openreloc_bench.commands.localize import localize_split
 from openreloc_bench.data.results import read_results, write_results
 from openreloc_bench.data.scene import Scene
-from openreloc_bench.methods import MASK_FREE, create_method, uses_masks
+from openreloc_bench.methods import create_method, uses_masks
+from openreloc_bench.tracks import MASK_FREE, ORACLE_MASK, PREDICTED
 from openreloc_bench.vision import create_segmenter
 
 TARGETS_S = {  # (method, track) -> median seconds per query
-    ("openreloc", "oracle-mask"): 0.5,
-    ("openreloc", "predicted"): 0.8,
+    ("openreloc", ORACLE_MASK): 0.5,
+    ("openreloc", PREDICTED): 0.8,
     ("sift-pnp", MASK_FREE): 0.5,
     ("orb-reloc", MASK_FREE): 0.5,
 }
@@ -84,7 +85,7 @@ def build_maps(method_name: str, map_track: str, scenes: list[Scene], work: Path
             out[scene.name] = json.loads(record.read_text())
             continue
         seq = scene.sequence("mapping")
-        seq.load_instances = map_track == "oracle-mask"
+        seq.load_instances = map_track == ORACLE_MASK
         map_dir.mkdir(parents=True, exist_ok=True)
         method = create_method(method_name)
         if profiler is not None:
@@ -199,7 +200,7 @@ def main() -> None:
             for track in tracks:
                 map_track = track
                 maps = build_maps(method_name, map_track, scenes, args.work, args.reuse_maps, args.profile)
-                query_track = "predicted" if track == MASK_FREE else track
+                query_track = PREDICTED if track == MASK_FREE else track
                 seconds, stages, est, truth = localize_all(
                     method_name, map_track, query_track, scenes, args.split, args.work, args.profile
                 )

@@ -19,8 +19,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from openreloc_bench.data.runs import load_run_queries
 from openreloc_bench.errors import ConfigError, DataError
-from openreloc_bench.harness.runner import load_run_queries
+from openreloc_bench.methods import uses_masks
 
 
 def whole_period_shift(offsets: np.ndarray, period_m: float, tol_m: float) -> np.ndarray:
@@ -57,7 +58,7 @@ def main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
     try:
         for r in args.results:
-            queries = load_run_queries(r)
+            queries = load_run_queries(r, uses_masks)
             if queries.empty:
                 raise ConfigError(f"{r}: no finished query jobs")
             print(f"# {r}")

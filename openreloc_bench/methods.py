@@ -8,6 +8,8 @@ scripts and tests.
 
 from __future__ import annotations
 
+import logging
+import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, is_dataclass
 from importlib.metadata import entry_points
@@ -16,19 +18,13 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
-from openreloc_bench.data.types import SceneSequence
+from openreloc_bench import geometry
+from openreloc_bench.data.types import Frame, SceneSequence
 from openreloc_bench.errors import ConfigError
+from openreloc_bench.tracks import MASK_FREE, ORACLE_MASK, PREDICTED, RecordedTrack, Track
 
 ENTRY_POINT_GROUP = "openreloc_bench.methods"
-TRACKS = ("oracle-mask", "predicted")
-"""Oracle-mask: queries and mapping frames carry the dataset's instance masks (a perfect detector).
-Predicted: neither does; a method segments for itself."""
-DEFAULT_TRACK = "predicted"
-"""The track of ``eval``, ``map``, ``localize``, ``score``, ``diagnose`` and the environments unless one is
-named: the headline track, the one a deployed method faces (no perfect detector); oracle masks are asked for."""
-MASK_FREE = "mask-free"
-"""What stands for the track where it makes no difference: the maps and results of methods that read no
-masks (``uses_masks = False``) serve both tracks, and are recorded under this track."""
+log = logging.getLogger(__name__)
 
 
 @dataclass
@@ -44,9 +40,15 @@ class QueryFrame:
     instance: np.ndarray | None = None
     """Instance ids (oracle-mask track only: a perfect detector); None in the predicted track."""
 
+    @classmethod
+    def from_frame(cls, frame: Frame, track: RecordedTrack) -> QueryFrame:
+        """What a method sees of a dataset frame on ``track``: the image and intrinsics, and the dataset's
+        instance masks on the oracle-mask track only."""
+        return cls(frame.name, frame.color, frame.K, frame.instance if track == ORACLE_MASK else None)
+
     @property
-    def track(self) -> str:
-        return "oracle-mask" if self.instance is not None else "predicted"
+    def track(self) -> Track:
+        return ORACLE_MASK if self.instance is not None else PREDICTED
 
 
 @dataclass
@@ -85,6 +87,49 @@ class Relocalizer(Protocol):
     def load_map(self, map_dir: Path) -> None: ...
 
     def localize(self, query: QueryFrame) -> PoseEstimate | Failure | None: ...
+
+
+@dataclass
+class Answer:
+    """A method's answer to one query as :func:`localize_safely` sorts it out: a pose, or none and why."""
+
+    name: str
+    """The query's name."""
+    T_wc: np.ndarray | None
+    """The estimated camera-to-world pose (a finite rigid 4x4 transform), or None."""
+    seconds: float
+    """Time of the method's own call."""
+    reason: str = ""
+    """Why there is no pose ("" when there is one)."""
+    diagnostics: dict[str, Any] = field(default_factory=dict)
+    """The method's diagnostics of its pose or failure (none when it raised or answered something else)."""
+
+
+def localize_safely(method: Relocalizer, query: QueryFrame) -> Answer:
+    """Ask ``method`` about ``query``, timing only its own call. Never raises: an exception, no answer, a
+    :class:`Failure`, another return type and a pose that is not a finite rigid 4x4 transform are each a
+    failure with its reason, so that a bug in a method fails one query, never a run or an episode."""
+    t0 = time.perf_counter()
+    try:
+        res = method.localize(query)
+    except Exception as e:  # noqa: BLE001 -- a method bug fails this query
+        seconds = time.perf_counter() - t0
+        log.debug("query %s raised", query.name, exc_info=True)
+        return Answer(query.name, None, seconds, f"raised {type(e).__name__}: {e}"[:300])
+    seconds = time.perf_counter() - t0
+    if res is None:
+        return Answer(query.name, None, seconds, "no estimate")
+    if isinstance(res, Failure):
+        return Answer(query.name, None, seconds, res.reason or "failure", res.diagnostics)
+    if not isinstance(res, PoseEstimate):
+        return Answer(query.name, None, seconds, f"invalid return type {type(res).__name__}")
+    try:
+        T = np.asarray(res.T_wc, dtype=np.float64)
+    except (TypeError, ValueError):
+        T = np.full(0, np.nan)
+    if T.shape != (4, 4) or not geometry.is_rigid(T):
+        return Answer(query.name, None, seconds, "invalid pose (not a finite rigid 4x4 transform)", res.diagnostics)
+    return Answer(query.name, T, seconds, "", res.diagnostics)
 
 
 _REGISTRY: dict[str, Callable[..., Relocalizer]] = {}
@@ -128,7 +173,7 @@ def uses_masks(name: str) -> bool:
     return True
 
 
-def recorded_track(method: Relocalizer, track: str) -> str:
+def recorded_track(method: Relocalizer, track: Track) -> RecordedTrack:
     """The track ``method``'s maps and results belong to when run on ``track``: ``MASK_FREE`` for a method
     that declares it reads no masks (``uses_masks = False``; it is then given none), else ``track``."""
     return track if getattr(method, "uses_masks", True) else MASK_FREE

@@ -1,17 +1,24 @@
+from typing import Any
+
+import numpy as np
 import pytest
 
 from baselines.nearest_frame import NearestFrame
+from openreloc_bench.data.types import Frame
 from openreloc_bench.errors import ConfigError
 from openreloc_bench.methods import (
-    MASK_FREE,
-    TRACKS,
+    Failure,
+    PoseEstimate,
+    QueryFrame,
     Relocalizer,
     available_methods,
     create_method,
+    localize_safely,
     recorded_track,
     register,
     uses_masks,
 )
+from openreloc_bench.tracks import MASK_FREE, ORACLE_MASK, PREDICTED, TRACKS
 
 
 def test_nearest_frame_is_registered_through_entry_points():
@@ -44,3 +51,62 @@ def test_methods_read_masks_unless_they_say_otherwise() -> None:
 def test_the_recorded_track_follows_the_method_declaration(track: str) -> None:
     assert recorded_track(create_method("nearest-frame"), track) == MASK_FREE  # uses_masks = False
     assert recorded_track(object(), track) == track  # says nothing: reads masks
+
+
+def test_a_query_frame_carries_the_dataset_masks_on_the_oracle_mask_track_only() -> None:
+    frame = Frame("query/000001", np.eye(4), np.eye(3), np.zeros((4, 4, 3), np.uint8), instance=np.ones((4, 4), int))
+    assert QueryFrame.from_frame(frame, ORACLE_MASK).track == ORACLE_MASK
+    for track in (PREDICTED, MASK_FREE):
+        assert QueryFrame.from_frame(frame, track).instance is None
+        assert QueryFrame.from_frame(frame, track).track == PREDICTED
+
+
+class Answering:
+    """A method whose ``localize`` answers ``answer`` (raises it when it is an exception)."""
+
+    name = "answering"
+
+    def __init__(self, answer: Any):
+        self.answer = answer
+
+    def localize(self, query: QueryFrame) -> Any:
+        if isinstance(self.answer, Exception):
+            raise self.answer
+        return self.answer
+
+
+POSE = np.eye(4)
+POSE[:3, 3] = (1.0, 2.0, 3.0)
+SHEARED = POSE.copy()
+SHEARED[0, 1] = 0.5
+NAN_POSE = POSE.copy()
+NAN_POSE[0, 3] = np.nan
+
+
+@pytest.mark.parametrize(
+    ("answer", "reason"),
+    [
+        (RuntimeError("boom"), "raised RuntimeError: boom"),
+        (ValueError("x" * 400), "raised ValueError: " + "x" * 281),  # cut at 300 characters
+        (None, "no estimate"),
+        (Failure("too few objects", {"matches": [1]}), "too few objects"),
+        (Failure(""), "failure"),
+        ((POSE, 1.0), "invalid return type tuple"),
+        (PoseEstimate(SHEARED), "invalid pose (not a finite rigid 4x4 transform)"),
+        (PoseEstimate(NAN_POSE), "invalid pose (not a finite rigid 4x4 transform)"),
+        (PoseEstimate(np.stack([POSE, POSE])), "invalid pose (not a finite rigid 4x4 transform)"),
+        (PoseEstimate("not a pose"), "invalid pose (not a finite rigid 4x4 transform)"),  # type: ignore[arg-type]
+    ],
+)
+def test_every_answer_but_a_rigid_pose_is_a_failure_with_its_reason(answer: Any, reason: str) -> None:
+    query = QueryFrame("query/000003", np.zeros((4, 4, 3), np.uint8), np.eye(3))
+    got = localize_safely(Answering(answer), query)  # type: ignore[arg-type]
+    assert (got.name, got.T_wc, got.reason) == ("query/000003", None, reason) and got.seconds >= 0
+    assert got.diagnostics == (answer.diagnostics if isinstance(answer, (Failure, PoseEstimate)) else {})
+
+
+def test_a_rigid_pose_is_the_answer_with_its_diagnostics() -> None:
+    query = QueryFrame("query/000003", np.zeros((4, 4, 3), np.uint8), np.eye(3))
+    got = localize_safely(Answering(PoseEstimate(POSE.tolist(), {"matches": [1, 2]})), query)  # type: ignore[arg-type]
+    assert got.reason == "" and got.diagnostics == {"matches": [1, 2]}
+    assert got.T_wc is not None and got.T_wc.dtype == np.float64 and np.array_equal(got.T_wc, POSE)

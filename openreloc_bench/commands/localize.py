@@ -15,10 +15,7 @@ from __future__ import annotations
 
 import argparse
 import json
-import logging
-import time
 from collections import Counter
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -27,17 +24,18 @@ from tqdm import tqdm
 
 from openreloc_bench import geometry
 from openreloc_bench.commands.options import TRACK_HELP, add_method_arguments, add_track_argument, method_overrides
-from openreloc_bench.data import io, mapfile, paths
+from openreloc_bench.data import io, paths
 from openreloc_bench.data.results import write_results
 from openreloc_bench.data.scene import QUERY_SPLITS, Scene
 from openreloc_bench.data.types import SceneSequence
 from openreloc_bench.errors import ConfigError
-from openreloc_bench.methods import Failure, PoseEstimate, QueryFrame, Relocalizer, create_method, recorded_track
+from openreloc_bench.harness.cache import check_map_source
+from openreloc_bench.methods import Answer, QueryFrame, Relocalizer, create_method, localize_safely, recorded_track
+from openreloc_bench.tracks import ORACLE_MASK, RecordedTrack
 
 NAME = "localize"
 HELP = "localize a query split against a map and write poses"
 ORDER = 30
-log = logging.getLogger(__name__)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -50,44 +48,17 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--diagnostics", type=Path, help="also write per-query diagnostics as JSON lines")
 
 
-@dataclass
-class QueryRecord:
-    """What happened to one query."""
-
-    name: str
-    T_wc: np.ndarray | None
-    seconds: float
-    reason: str | None = None
-    diagnostics: dict[str, Any] = field(default_factory=dict)
-
-
-def localize_split(method: Relocalizer, seq: SceneSequence, track: str, progress: bool = True) -> list[QueryRecord]:
-    """Localize every frame of ``seq``; failures and method exceptions become records with a reason."""
-    records = []
-    for i in tqdm(range(len(seq)), desc=f"localize {seq.split}", disable=not progress, leave=False):
-        f = seq[i]
-        query = QueryFrame(f.name, f.color, f.K, f.instance if track == "oracle-mask" else None)
-        t0 = time.perf_counter()
-        try:
-            res = method.localize(query)
-        except Exception as e:  # noqa: BLE001 -- one query's bug must not stop the split
-            log.debug("query %s raised", f.name, exc_info=True)
-            res = Failure(f"raised {type(e).__name__}: {e}"[:300])
-        dt = time.perf_counter() - t0
-        if isinstance(res, PoseEstimate) and geometry.is_rigid(np.asarray(res.T_wc, dtype=np.float64)):
-            records.append(QueryRecord(f.name, np.asarray(res.T_wc, dtype=np.float64), dt, None, res.diagnostics))
-        elif isinstance(res, PoseEstimate):
-            records.append(
-                QueryRecord(f.name, None, dt, "invalid pose (not a finite rigid transform)", res.diagnostics)
-            )
-        elif isinstance(res, Failure):
-            records.append(QueryRecord(f.name, None, dt, res.reason, res.diagnostics))
-        else:
-            records.append(QueryRecord(f.name, None, dt, "no estimate"))
-    return records
+def localize_split(
+    method: Relocalizer, seq: SceneSequence, track: RecordedTrack, progress: bool = True
+) -> list[Answer]:
+    """Localize every frame of ``seq``; failures and method exceptions are answers with a reason."""
+    return [
+        localize_safely(method, QueryFrame.from_frame(f, track))
+        for f in tqdm(seq, desc=f"localize {seq.split}", disable=not progress, leave=False)
+    ]
 
 
-def summary(records: list[QueryRecord], gt: dict[str, np.ndarray] | None = None) -> list[str]:
+def summary(records: list[Answer], gt: dict[str, np.ndarray] | None = None) -> list[str]:
     """Printable lines: localized share, failure reasons, latency, and recall when ground truth exists."""
     n = len(records)
     ok = [r for r in records if r.T_wc is not None]
@@ -131,9 +102,9 @@ def run(args: argparse.Namespace) -> int:
     scene = Scene(args.scene)
     seq = scene.sequence(args.split)
     track = recorded_track(method, args.track)
-    mapfile.check_map_scene(args.map, scene, track)
+    check_map_source(args.map, scene, track)
     method.load_map(args.map)
-    seq.load_instances = track == "oracle-mask"
+    seq.load_instances = track == ORACLE_MASK
     records = localize_split(method, seq, track)
     poses = {r.name: r.T_wc for r in records if r.T_wc is not None}
     write_results(
@@ -153,7 +124,7 @@ def run(args: argparse.Namespace) -> int:
                     {
                         "name": r.name,
                         "ok": r.T_wc is not None,
-                        "reason": r.reason,
+                        "reason": r.reason or None,
                         "seconds": round(r.seconds, 4),
                         "diagnostics": r.diagnostics,
                     }

@@ -14,14 +14,12 @@ that declares it reads no masks); the map records its track, and ``localize`` re
 from __future__ import annotations
 
 import argparse
-import shutil
-import time
 from pathlib import Path
 
 from openreloc_bench.commands.options import TRACK_HELP, add_method_arguments, add_track_argument, method_overrides
 from openreloc_bench.data import mapfile, paths
 from openreloc_bench.data.scene import Scene
-from openreloc_bench.harness.cache import dir_bytes
+from openreloc_bench.harness.cache import build_map, dir_bytes
 from openreloc_bench.methods import create_method, recorded_track
 
 NAME = "map"
@@ -40,29 +38,17 @@ def run(args: argparse.Namespace) -> int:
     paths.check_output(args.out, [args.scene], "--out")
     method = create_method(args.method, **method_overrides(args))
     scene = Scene(args.scene)
-    seq = scene.sequence("mapping")
     track = recorded_track(method, args.track)
-    seq.load_instances = track == "oracle-mask"
     # the directory holds the map alone (its size is the map's): a previous map there is replaced,
     # anything else is refused; no other map build writes into it meanwhile
     with paths.directory_lock(args.out, "openreloc-bench map", in_directory=False):
         mapfile.clear_file_set(args.out)
-        t0 = time.perf_counter()
-        try:
-            method.build_map(seq, args.out)
-        except BaseException:  # interrupted or failed: what is there is a part of this map, never a map
-            for p in args.out.iterdir():
-                if p.is_dir() and not p.is_symlink():
-                    shutil.rmtree(p)
-                else:
-                    p.unlink()
-            raise
+        built = build_map(method, scene, track, args.out)
         # what the map is of: `localize` refuses to pair it with another scene
-        mapfile.record_source(args.out, {"scene": scene.name, "spec_hash": scene.spec_hash, "track": track})
-        elapsed = time.perf_counter() - t0
+        mapfile.record_source(args.out, built[mapfile.SOURCE_KEY])
     size = dir_bytes(args.out)
     print(
-        f"{args.method}: map of {len(seq)} mapping frames ({track} track) written to {args.out} "
-        f"({size / 1e6:.3f} MB, {elapsed:.1f} s)"
+        f"{args.method}: map of {built['n_mapping_frames']} mapping frames ({track} track) written to {args.out} "
+        f"({size / 1e6:.3f} MB, {built['mapping_time_s']:.1f} s)"
     )
     return 0

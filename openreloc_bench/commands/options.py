@@ -8,7 +8,7 @@ from typing import Any
 
 from openreloc_bench import config, plugins
 from openreloc_bench.errors import ConfigError
-from openreloc_bench.methods import DEFAULT_TRACK, TRACKS
+from openreloc_bench.tracks import DEFAULT_TRACK, TRACKS
 
 
 def add_method_arguments(p: argparse.ArgumentParser) -> None:
@@ -38,7 +38,7 @@ def load_plugin_arguments(args: argparse.Namespace) -> None:
 
 
 def add_track_argument(p: argparse.ArgumentParser, text: str, choices: tuple[str, ...] = TRACKS) -> None:
-    """``--track``, defaulting to the one default track (``methods.DEFAULT_TRACK``)."""
+    """``--track``, defaulting to the one default track (``tracks.DEFAULT_TRACK``)."""
     p.add_argument("--track", default=DEFAULT_TRACK, choices=choices, help=text)
 
 

@@ -22,7 +22,7 @@ from openreloc_bench.data.results import NAME_STYLES
 from openreloc_bench.errors import ConfigError
 from openreloc_bench.harness import score, tables
 from openreloc_bench.harness.suites import suite_scene_names
-from openreloc_bench.methods import DEFAULT_TRACK, MASK_FREE, TRACKS
+from openreloc_bench.tracks import DEFAULT_TRACK, MASK_FREE, TRACKS
 
 NAME = "score"
 HELP = "score externally produced pose files against a dataset"

@@ -18,10 +18,11 @@ from pathlib import Path
 
 import numpy as np
 
-from openreloc_bench.data import io, mapfile, paths
+from openreloc_bench.data import io, paths
 from openreloc_bench.data.results import read_submission
 from openreloc_bench.data.scene import QUERY_SPLITS, Scene
 from openreloc_bench.errors import ConfigError, DataError
+from openreloc_bench.harness.cache import check_map_source
 from openreloc_bench.openreloc import view3d
 from openreloc_bench.openreloc.map import ObjectMap
 
@@ -100,7 +101,7 @@ def run(args: argparse.Namespace) -> int:
     mapping = true = estimates = None
     if args.scene is not None:
         scene = Scene(args.scene)
-        mapfile.check_map_scene(args.map_dir, scene)
+        check_map_source(args.map_dir, scene)
         mapping = np.asarray(scene.sequence("mapping").poses)
         if args.results is not None:
             check_run_scene(args.results, args.split, scene)

@@ -18,15 +18,12 @@ import io as _io
 import json
 import zipfile
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from openreloc_bench.data import io
 from openreloc_bench.errors import ConfigError, DataError
-
-if TYPE_CHECKING:
-    from openreloc_bench.data.scene import Scene
 
 MANIFEST = "manifest.json"
 SOURCE_KEY = "built_from"
@@ -158,25 +155,6 @@ def recorded_source(directory: Path | str) -> dict[str, str] | None:
     doc = io.read_json(path) if path.is_file() else None
     source = doc.get(SOURCE_KEY) if isinstance(doc, dict) else None
     return source if isinstance(source, dict) else None
-
-
-def check_map_scene(map_dir: Path | str, scene: Scene, track: str | None = None) -> None:
-    """ConfigError when ``map_dir`` recorded being built from another scene than ``scene`` (every pose
-    would be in the other scene's frame: silently wrong), or on another track than ``track`` (the map
-    would hold the dataset's masks, or lack them; maps from before tracks were recorded are not checked)."""
-    source = recorded_source(map_dir)
-    if source is not None and source.get("spec_hash") != scene.spec_hash:
-        raise ConfigError(
-            f"{map_dir} is a map of scene '{source.get('scene')}' (spec {source.get('spec_hash')}), not of "
-            f"{scene.root} (spec {scene.spec_hash}): give the scene it was built from, or build "
-            "a map of this one with 'openreloc-bench map'"
-        )
-    built = source.get("track") if source is not None else None
-    if track is not None and built is not None and built != track:
-        raise ConfigError(
-            f"{map_dir} is a map of the {built} track, not of the {track} track: localize with --track {built}, "
-            f"or build a map with 'openreloc-bench map --track {track}'"
-        )
 
 
 def check_format(doc: Any, path: Path, format_name: str, version: int) -> None:

@@ -33,16 +33,11 @@ from openreloc_bench.data import io
 from openreloc_bench.data.types import FrameRecord, SceneSequence, check_intrinsics
 from openreloc_bench.errors import DataError
 
-SPLITS = (
-    "mapping",
-    "query",
-    "query_light1",
-    "query_light2",
-    "query_light3",
-    "query_light4",
-    "query_displaced",
-    "query_near",
-)
+LIGHT_SPLITS = ("query", "query_light1", "query_light2", "query_light3", "query_light4")
+"""The query split and its relit copies, by light level (0: the scene's own lights, up to 4), on the same poses."""
+DISPLACED_SPLIT = "query_displaced"
+"""The query split's poses with some objects moved."""
+SPLITS = ("mapping", *LIGHT_SPLITS, DISPLACED_SPLIT, "query_near")
 QUERY_SPLITS = SPLITS[1:]
 LIGHT_SPLITS = ("query", *(s for s in SPLITS if s.startswith("query_light")))
 """The query split under the mapping's lighting, then its variants under the four decayed lightings."""
@@ -69,6 +64,8 @@ smallest rotation (deg) to a mapping frame within 1 m, the split's light level (
 the non-structural objects covering at least 0.5% of the image, the image share all of them cover, how
 many of the visible ones were moved (``query_displaced``) and how many have an identical twin in the
 scene."""
+DIFFICULTY_AXES = DIFFICULTY_COLUMNS[2:]
+"""The difficulty columns of the per-query tables, joined from each scene's ``difficulty.csv``."""
 STRUCTURAL_CATEGORIES = frozenset(
     {"wall", "floor", "ceiling", "door", "doorway", "window", "stairs", "railing", "baseboard", "column"}
 )

@@ -32,7 +32,7 @@ import logging
 import os
 import sys
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -45,7 +45,7 @@ from openreloc_bench.envs.relocalizer import Estimate, InLoopRelocalizer
 from openreloc_bench.envs.scenes import cache_root, resolve_scene
 from openreloc_bench.envs.world import AgentPose, World, scene_spec
 from openreloc_bench.errors import ConfigError, OpenRelocError
-from openreloc_bench.methods import DEFAULT_TRACK
+from openreloc_bench.tracks import DEFAULT_TRACK, ORACLE_MASK, Track
 
 log = logging.getLogger(__name__)
 
@@ -79,7 +79,7 @@ class EnvConfig:
     """Registered relocalization method in the loop (``openreloc-bench methods``); None: no relocalizer."""
     method_options: dict[str, Any] = field(default_factory=dict)
     """The method's config overrides (as ``--set`` gives them to ``openreloc-bench map``)."""
-    track: Literal["predicted", "oracle-mask"] = DEFAULT_TRACK
+    track: Track = DEFAULT_TRACK
     """What the relocalizer is given: the image only, or the image and perfect instance masks."""
     relocalize_every: int = 1
     """Ask the relocalizer about the view after every this many steps (and after reset); 0: only when
@@ -160,7 +160,9 @@ class IndoorEnv(gym.Env, EzPickle):
             self.scene = Scene(resolve_scene(cfg.scene, cfg.suite, cfg.cache_dir))
             self.scene_spec = scene_spec(self.scene)
             self.relocalizer = (
-                InLoopRelocalizer(cfg.method, cfg.method_options, self.scene, self._cache) if cfg.method else None
+                InLoopRelocalizer(cfg.method, cfg.method_options, self.scene, self._cache, cfg.track)
+                if cfg.method
+                else None
             )
             if self.relocalizer is not None and "mapping" not in self.scene.splits():
                 raise ConfigError(f"scene {self.scene.root} has no 'mapping' split (the relocalizer's map needs it)")
@@ -354,7 +356,7 @@ class IndoorEnv(gym.Env, EzPickle):
             return self._answer
         spec = self.scene_spec
         name = f"agent/{self._steps:06d}"
-        if cfg.track == "oracle-mask":
+        if cfg.track == ORACLE_MASK:
             rgb, _, instance = world.renderer.render(T, world.K, spec.width, spec.height)
         else:
             rgb, instance = world.render(T, world.K, spec.width, spec.height)[0], None

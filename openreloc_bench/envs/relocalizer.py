@@ -1,10 +1,12 @@
-"""A registered relocalization method in the agent's loop: its map built once per (map config, scene)
-and cached, then one ``localize`` call per view the environment asks about.
+"""A registered relocalization method in the agent's loop: its map built once per (map key, scene) and
+cached, then one ``localize`` call per view the environment asks about.
 
-Maps go to ``<cache>/maps/<method>/<map config hash>/<scene>-<spec hash>/`` through the harness's
-:func:`~openreloc_bench.harness.cache.build_map_cached` (the same completion record, so a map is
-rebuilt when the scene's spec changes), under a lock so that the workers of a vector environment
-build it once between them.
+The map is built on the environment's track (the dataset's masks on the oracle-mask track only, none for
+a method that reads no masks), as ``eval`` builds it. Maps go to
+``<cache>/maps/<method>/<map key>/<scene>-<spec hash>/`` through the harness's
+:func:`~openreloc_bench.harness.cache.cached_map` (the same completion record, so a map is rebuilt when
+the scene's spec changes), under a lock so that the workers of a vector environment build it once
+between them.
 """
 
 from __future__ import annotations
@@ -16,11 +18,11 @@ from typing import Any
 
 import numpy as np
 
-from openreloc_bench import geometry
 from openreloc_bench.data.scene import Scene
 from openreloc_bench.envs.scenes import locked, scene_key
 from openreloc_bench.harness import cache
-from openreloc_bench.methods import Failure, PoseEstimate, QueryFrame, create_method, map_config
+from openreloc_bench.methods import QueryFrame, create_method, localize_safely, map_config, recorded_track
+from openreloc_bench.tracks import ORACLE_MASK, Track
 
 log = logging.getLogger(__name__)
 
@@ -40,12 +42,13 @@ class Estimate:
 class InLoopRelocalizer:
     """One method with its map of one scene; the map is built or loaded on first use."""
 
-    def __init__(self, method: str, options: dict[str, Any], scene: Scene, cache_root: Path):
+    def __init__(self, method: str, options: dict[str, Any], scene: Scene, cache_root: Path, track: Track):
         self.method = create_method(method, **options)
         self.name = method
         self.scene = scene
-        key = cache.config_hash(map_config(self.method))
-        self.map_dir = cache_root / "maps" / method / key / scene_key(scene)
+        self.track = recorded_track(self.method, track)
+        """The masks the map is built from and the queries carry: ``mask-free`` for a method that reads none."""
+        self.map_dir = cache_root / "maps" / method / cache.map_key(self.method, self.track) / scene_key(scene)
         self._cache_root = cache_root
         self._loaded = False
 
@@ -57,9 +60,7 @@ class InLoopRelocalizer:
             if cache.read_map_record(self.map_dir, self.scene.spec_hash) is None:
                 log.info("building the %s map of %s (once; cached in %s)", self.name, self.scene.name, self.map_dir)
             extra = {"method": self.name, "scene": self.scene.name, "map_config": map_config(self.method)}
-            cache.build_map_cached(
-                self.method, self.scene.sequence("mapping"), self.map_dir, self.scene.spec_hash, extra
-            )
+            cache.cached_map(self.method, self.scene, self.track, self.map_dir, extra)
         self.method.load_map(self.map_dir)
         self._loaded = True
 
@@ -67,19 +68,7 @@ class InLoopRelocalizer:
         """Ask the method about one view. A method that raises or answers nonsense fails this view (with
         the reason), as in the harness: a bug in a method must not end a training run."""
         self.ensure_loaded()
-        try:
-            res = self.method.localize(QueryFrame(name, rgb, K, instance))
-        except Exception as e:  # noqa: BLE001 -- reported as this view's failure
-            log.debug("relocalizer raised", exc_info=True)
-            return Estimate(None, 0, f"raised {type(e).__name__}: {e}"[:300])
-        diagnostics = res.diagnostics if isinstance(res, (PoseEstimate, Failure)) else {}
-        matches = diagnostics.get("matches")
-        matched = len(matches) if isinstance(matches, list) else 0
-        if res is None or isinstance(res, Failure):
-            return Estimate(None, matched, res.reason if res is not None else "no estimate")
-        if not isinstance(res, PoseEstimate):
-            return Estimate(None, 0, f"invalid return type {type(res).__name__}")
-        T = np.asarray(res.T_wc, dtype=np.float64)
-        if T.shape != (4, 4) or not geometry.is_rigid(T):
-            return Estimate(None, matched, "invalid pose (not a finite rigid 4x4 transform)")
-        return Estimate(T, matched)
+        query = QueryFrame(name, rgb, K, instance if self.track == ORACLE_MASK else None)
+        answer = localize_safely(self.method, query)
+        matches = answer.diagnostics.get("matches")
+        return Estimate(answer.T_wc, len(matches) if isinstance(matches, list) else 0, answer.reason)

@@ -5,7 +5,7 @@ Cache layout (``cache_dir``: the env option, else ``$OPENRELOC_BENCH_CACHE``, el
 ``$XDG_CACHE_HOME/openreloc-bench`` or ``~/.cache/openreloc-bench``)::
 
     scenes/<suite>/<scene>/                        generated scenes (the generator's layout)
-    maps/<method>/<map config hash>/<scene>-<spec hash>/   relocalizer maps (harness/cache.py's record)
+    maps/<method>/<map key>/<scene>-<spec hash>/   relocalizer maps (harness/cache.py's record)
     goals/<scene>-<spec hash>/<encoder hash>.npz   text embeddings of the scene's object descriptions
     locks/                                         one lock file per thing being built
 

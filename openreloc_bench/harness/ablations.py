@@ -10,6 +10,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
+from openreloc_bench.data.scene import DISPLACED_SPLIT, LIGHT_SPLITS
+
 ABLATED_METHOD = "openreloc"
 """Registry name of the method the ablation rows switch parts of."""
 
@@ -51,12 +53,9 @@ ABLATION_ROWS: tuple[Row, ...] = (
 FULL_ROW = Row("full", "Ours Full")
 
 ROBUSTNESS_ROWS: tuple[Row, ...] = (
-    Row("query", "Original"),
-    Row("query_light1", "Lighting 1"),
-    Row("query_light2", "Lighting 2"),
-    Row("query_light3", "Lighting 3"),
-    Row("query_light4", "Lighting 4"),
-    Row("query_displaced", "Displaced objects"),
+    Row(LIGHT_SPLITS[0], "Original"),
+    *(Row(split, f"Lighting {level}") for level, split in enumerate(LIGHT_SPLITS) if level),
+    Row(DISPLACED_SPLIT, "Displaced objects"),
 )
 """Robustness settings: each is a query split of the scene (key = split name)."""
 

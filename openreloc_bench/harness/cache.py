@@ -1,9 +1,14 @@
-"""Map cache and provenance: a map is built once per (method config, scene spec) and reused.
+"""The one map builder, the map cache and provenance: a map is built once per (map config, masks, scene
+spec) and reused.
 
-Layout: ``RESULTS/maps/<method>/<config hash>/<scene>/`` holds only what the method wrote (so its
-size is the method's map size); ``<scene>.done.json`` next to it is written last and records the
-scene spec hash, mapping time and map size. A map whose marker is missing, damaged or names another
-spec hash, or whose files no longer match its manifest, is rebuilt from scratch.
+Every map is built by :func:`build_map` (``map`` into a folder of the user's, the cache for ``eval``,
+``diagnose`` and the environments), which records what it was built from (``built_from``: the scene's
+name and spec hash, and the track). The cache's layout: ``RESULTS/maps/<method>/<map key>/<scene>/``
+holds only what the method wrote (so its size is the method's map size); ``<scene>.done.json`` next to
+it is written last and records ``built_from``, the mapping time and the map size. A map whose record is
+missing, damaged or names another spec hash, or whose files no longer match its manifest, is rebuilt
+from scratch. ``map`` notes ``built_from`` in the map's manifest instead; :func:`check_map_source` reads
+either, so ``localize`` and ``view`` refuse every map of another scene.
 """
 
 from __future__ import annotations
@@ -18,7 +23,10 @@ from pathlib import Path
 from typing import Any
 
 from openreloc_bench.data import io, mapfile
-from openreloc_bench.errors import DataError
+from openreloc_bench.data.scene import Scene
+from openreloc_bench.errors import ConfigError, DataError
+from openreloc_bench.methods import Relocalizer, map_config
+from openreloc_bench.tracks import ORACLE_MASK, RecordedTrack
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 
@@ -27,6 +35,11 @@ def config_hash(config: dict[str, Any]) -> str:
     """Short stable hash of a method's full config (as given by ``methods.method_config``)."""
     blob = json.dumps(config, sort_keys=True, default=str).encode()
     return hashlib.sha256(blob).hexdigest()[:12]
+
+
+def map_key(method: Relocalizer, track: RecordedTrack) -> str:
+    """The hash ``method``'s maps are cached under: its map config and the track whose masks they are built from."""
+    return config_hash({**map_config(method), "masks": track})
 
 
 def dir_bytes(path: Path) -> int:
@@ -72,25 +85,75 @@ def read_map_record(map_dir: Path, spec_hash: str) -> dict[str, Any] | None:
     return rec if isinstance(rec, dict) and rec.get("spec_hash") == spec_hash else None
 
 
-def build_map_cached(method: Any, mapping: Any, map_dir: Path, spec_hash: str, extra: dict[str, Any]) -> dict[str, Any]:
-    """Build ``method``'s map into ``map_dir`` unless a valid cached one exists; return its record."""
-    rec = read_map_record(map_dir, spec_hash)
+def build_map(method: Relocalizer, scene: Scene, track: RecordedTrack, map_dir: Path) -> dict[str, Any]:
+    """Build ``method``'s map of ``scene``'s mapping split into ``map_dir`` (absent or empty), from the
+    dataset's masks on the oracle-mask track only; return what it was built from (``built_from``) and
+    what it cost. A failed or interrupted build leaves ``map_dir`` empty: what is there is a part of a map,
+    never a map."""
+    mapping = scene.sequence("mapping")
+    mapping.load_instances = track == ORACLE_MASK
+    map_dir.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    try:
+        method.build_map(mapping, map_dir)
+    except BaseException:
+        for p in map_dir.iterdir():
+            if p.is_dir() and not p.is_symlink():
+                shutil.rmtree(p)
+            else:
+                p.unlink()
+        raise
+    return {
+        mapfile.SOURCE_KEY: {"scene": scene.name, "spec_hash": scene.spec_hash, "track": track},
+        "mapping_time_s": time.perf_counter() - t0,
+        "map_bytes": dir_bytes(map_dir),
+        "n_mapping_frames": len(mapping),
+    }
+
+
+def cached_map(
+    method: Relocalizer, scene: Scene, track: RecordedTrack, map_dir: Path, provenance: dict[str, Any]
+) -> dict[str, Any]:
+    """The record of ``method``'s map of ``scene`` on ``track`` in the cache folder ``map_dir``: the map is
+    built (:func:`build_map`) unless a valid one is there. ``provenance`` is recorded with it."""
+    rec = read_map_record(map_dir, scene.spec_hash)
     if rec is not None:
         return rec
     map_marker(map_dir).unlink(missing_ok=True)
     if map_dir.exists():
         shutil.rmtree(map_dir)
-    map_dir.mkdir(parents=True)
-    t0 = time.perf_counter()
-    method.build_map(mapping, map_dir)
-    seconds = time.perf_counter() - t0
-    rec = {
-        **extra,
-        "spec_hash": spec_hash,
-        "mapping_time_s": seconds,
-        "map_bytes": dir_bytes(map_dir),
-        "n_mapping_frames": len(mapping),
-        "git_commit": git_commit(),
-    }
+    rec = {**provenance, "spec_hash": scene.spec_hash, **build_map(method, scene, track, map_dir)}
+    rec["git_commit"] = git_commit()
     io.write_json(map_marker(map_dir), rec)
     return rec
+
+
+def map_source(map_dir: Path) -> dict[str, Any] | None:
+    """What the map in ``map_dir`` was built from: its cache record's ``built_from``, or its manifest's
+    (maps of ``map``); None for a map from before it was recorded, or of a plugin's own format."""
+    marker = map_marker(map_dir)
+    try:
+        rec = io.read_json(marker) if marker.is_file() else None
+    except DataError:
+        rec = None
+    source = rec.get(mapfile.SOURCE_KEY) if isinstance(rec, dict) else None
+    return source if isinstance(source, dict) else mapfile.recorded_source(map_dir)
+
+
+def check_map_source(map_dir: Path, scene: Scene, track: RecordedTrack | None = None) -> None:
+    """ConfigError when ``map_dir`` recorded being built from another scene than ``scene`` (every pose
+    would be in the other scene's frame: silently wrong), or on another track than ``track`` (the map
+    would hold the dataset's masks, or lack them; maps from before tracks were recorded are not checked)."""
+    source = map_source(map_dir)
+    if source is not None and source.get("spec_hash") != scene.spec_hash:
+        raise ConfigError(
+            f"{map_dir} is a map of scene '{source.get('scene')}' (spec {source.get('spec_hash')}), not of "
+            f"{scene.root} (spec {scene.spec_hash}): give the scene it was built from, or build "
+            "a map of this one with 'openreloc-bench map'"
+        )
+    built = source.get("track") if source is not None else None
+    if track is not None and built is not None and built != track:
+        raise ConfigError(
+            f"{map_dir} is a map of the {built} track, not of the {track} track: localize with --track {built}, "
+            f"or build a map with 'openreloc-bench map --track {track}'"
+        )

@@ -27,7 +27,8 @@ from openreloc_bench.harness import cache, runner, tables
 from openreloc_bench.harness.ablations import ABLATED_METHOD
 from openreloc_bench.harness.evaluation import tabulate
 from openreloc_bench.harness.suites import ensure_suite_scenes
-from openreloc_bench.methods import MASK_FREE, uses_masks
+from openreloc_bench.methods import uses_masks
+from openreloc_bench.tracks import MASK_FREE, TRACKS
 
 STAGES = ("headline", "robustness", "seeds", "ablations")
 """The campaign's stages, in the order they run (each a priority: a partial campaign has the first)."""
@@ -110,8 +111,8 @@ def check_plan(plan: CampaignPlan) -> None:
     if not plan.splits or len(set(plan.splits)) != len(plan.splits) or not plan.seeds:
         raise ConfigError("plan: 'splits' and 'seeds' must name at least one entry, splits each once")
     for track in {*plan.tracks, plan.ablation_track}:
-        if track not in runner.TRACKS:
-            raise ConfigError(f"plan: unknown track '{track}' (known: {', '.join(runner.TRACKS)})")
+        if track not in TRACKS:
+            raise ConfigError(f"plan: unknown track '{track}' (known: {', '.join(TRACKS)})")
     wrong = [s for s in plan.splits if s not in QUERY_SPLITS]
     if wrong:
         raise ConfigError(f"plan: unknown split '{wrong[0]}' (known: {', '.join(QUERY_SPLITS)})")

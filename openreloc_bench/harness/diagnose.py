@@ -28,11 +28,12 @@ from openreloc_bench import geometry
 from openreloc_bench.bars import tqdm
 from openreloc_bench.data.scene import Scene
 from openreloc_bench.data.types import SceneSequence
-from openreloc_bench.harness.cache import build_map_cached, config_hash
+from openreloc_bench.harness.cache import cached_map, map_key
 from openreloc_bench.harness.metrics import summarize
-from openreloc_bench.methods import DEFAULT_TRACK, Failure, PoseEstimate, QueryFrame, create_method
+from openreloc_bench.methods import Failure, PoseEstimate, QueryFrame, create_method
 from openreloc_bench.openreloc.instance_eval import box_point_labels, boxed_objects
 from openreloc_bench.openreloc.map import ObjectMap
+from openreloc_bench.tracks import DEFAULT_TRACK, ORACLE_MASK, PREDICTED, Track
 from openreloc_bench.vision import create_segmenter
 from openreloc_bench.vision.base import ObjectMask, Segmenter, label_image
 from openreloc_bench.vision.segmenter_training import frame_metrics
@@ -47,7 +48,7 @@ BOUNDARY_TOLERANCE_PX = 2
 class DiagnoseOptions:
     """What ``diagnose`` measures."""
 
-    track: str = DEFAULT_TRACK
+    track: Track = DEFAULT_TRACK
     """'predicted' (the method's segmenter on map and queries) or 'oracle-mask' (the dataset's masks)."""
     splits: tuple[str, ...] = ("query",)
     """Query splits to segment and localize."""
@@ -160,14 +161,11 @@ def localization_quality(
 
 
 def _map(scene: Scene, overrides: dict[str, Any], masks: str, work_dir: Path) -> tuple[Any, Path, dict[str, Any]]:
-    """The method and its map of ``scene`` from the dataset's masks or the segmenter's."""
+    """The method and its map of ``scene`` from the dataset's masks or the segmenter's, cached as eval's."""
     method = create_method("openreloc", **overrides)
-    mapping = scene.sequence("mapping")
-    mapping.load_instances = masks == "dataset"
-    map_dir = work_dir / "maps" / scene.name / masks
-    map_dir.parent.mkdir(parents=True, exist_ok=True)
-    spec = {"scene": scene.spec_hash, "masks": masks, "map": method.map_config()}
-    build_map_cached(method, mapping, map_dir, config_hash(spec), {"scene": scene.name})
+    track = ORACLE_MASK if masks == "dataset" else PREDICTED
+    map_dir = work_dir / "maps" / method.name / map_key(method, track) / scene.name
+    cached_map(method, scene, track, map_dir, {"scene": scene.name})
     return method, map_dir, ObjectMap.load(map_dir).stats
 
 
@@ -176,12 +174,12 @@ def diagnose_scene(
 ) -> dict[str, Any]:
     """Every stage's numbers for one scene (see the module docstring)."""
     scene = Scene(scene_dir)
-    masks = "predicted" if options.track == "predicted" else "dataset"
+    masks = "predicted" if options.track == PREDICTED else "dataset"
     method, map_dir, stats = _map(scene, overrides, masks, work_dir)
     out: dict[str, Any] = {"scene": scene.name, "track": options.track, "map": stats.get("instance_quality") or {}}
     out["map"]["landmarks"] = stats.get("landmarks")
     out["map"]["seconds"] = stats.get("timings_s", {}).get("total")
-    if options.track == "predicted":
+    if options.track == PREDICTED:
         segmenter = create_segmenter(method.config.segmenter, **method.config.segmenter_options)
         out["segmentation"] = {
             split: segmentation_quality(scene.sequence(split), segmenter, options.frames) for split in options.splits
@@ -190,7 +188,7 @@ def diagnose_scene(
         out["localization"] = {
             split: localization_quality(method, map_dir, scene, split, masks, progress) for split in options.splits
         }
-    if options.swap and options.track == "predicted":
+    if options.swap and options.track == PREDICTED:
         other, other_dir, _ = _map(scene, overrides, "dataset", work_dir)
         out["swap"] = {
             "dataset map + predicted queries": {

@@ -13,17 +13,19 @@ from pathlib import Path
 
 import pandas as pd
 
+from openreloc_bench.data import runs
 from openreloc_bench.harness import runner, tables
 from openreloc_bench.harness.suites import ensure_suite_scenes
+from openreloc_bench.methods import uses_masks
 
 
 def tabulate(results: Path) -> tuple[pd.DataFrame, pd.DataFrame] | None:
     """Write ``results/tables`` from every finished job under ``results`` (:func:`tables.write_tables`);
     returns the suite and seeds tables, or None (and writes nothing) when no job has finished."""
-    queries = runner.load_run_queries(results)
+    queries = runs.load_run_queries(results, uses_masks)
     if queries.empty:
         return None
-    _, suite, seeds = tables.write_tables(results / "tables", queries, runner.load_map_records(results))
+    _, suite, seeds = tables.write_tables(results / "tables", queries, runs.load_map_records(results))
     return suite, seeds
 
 

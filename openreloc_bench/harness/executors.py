@@ -34,7 +34,7 @@ def mp_context() -> mp.context.BaseContext:
     if "forkserver" not in mp.get_all_start_methods():
         return mp.get_context("spawn")
     ctx = mp.get_context("forkserver")
-    ctx.set_forkserver_preload(["openreloc_bench.harness.runner", "torch", "sentence_transformers"])
+    ctx.set_forkserver_preload(["openreloc_bench.harness.jobs", "torch", "sentence_transformers"])
     return ctx
 
 

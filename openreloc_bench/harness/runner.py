@@ -1,386 +1,41 @@
-"""The evaluation runner: maps built once per (method config, scene), every query localized and scored.
+"""The evaluation runner: plans an evaluation and runs it, maps built once per (map key, scene) and
+every query localized and scored.
 
-Work is split into picklable jobs so any executor can run them: one :class:`MapJob` per (method
-variant, scene), then one :class:`QueryJob` per (method variant, scene, split). A query job writes
-
-    RESULTS/runs/<label>/<track>/<scene>/<split>.txt           T_cw pose file (estimates only)
-                                         <split>.tum           TUM export (camera-to-world, for evo)
-                                         <split>.queries.csv   per-query errors, runtime, failure reason, difficulty
-                                         <split>.done.json     provenance + timings, written LAST
-
-each atomically, the marker last: a job is finished exactly when its marker exists, so ``--resume``
-skips it and a killed run never leaves a file that a resumed run would trust half-written. ``<track>``
-is the one recorded for the method: ``mask-free`` for a method that declares it reads no masks, whose
-results then stand for both tracks (:func:`openreloc_bench.methods.recorded_track`).
-
-A query runs in a child "query server" process when a per-query timeout is set, so a method that
-hangs can be abandoned (the child is killed and restarted for the next query); a method that raises
-fails that query with the exception as reason. Either way the run goes on.
+:func:`plan` checks everything up front (methods, configs, scenes, splits, track) and lists the jobs
+(:mod:`~openreloc_bench.harness.jobs`); :func:`evaluate` runs the map jobs, then the query jobs, on an
+executor (:mod:`~openreloc_bench.harness.executors`), with one progress bar for each. What the jobs
+wrote is read back by :mod:`openreloc_bench.data.runs`.
 """
 
 from __future__ import annotations
 
-import logging
-import os
 import time
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from collections.abc import Iterator
+from contextlib import contextmanager, nullcontext
 from dataclasses import dataclass, field
-from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-import pandas as pd
 from tqdm import tqdm
 
-from openreloc_bench import bars, geometry, plugins
+from openreloc_bench import plugins
 from openreloc_bench.data import io, paths
-from openreloc_bench.data.results import write_results, write_tum
 from openreloc_bench.data.scene import Scene
-from openreloc_bench.data.types import SceneSequence
-from openreloc_bench.errors import ConfigError, DataError, exit_quietly_on_interrupt
+from openreloc_bench.errors import ConfigError, DataError
 from openreloc_bench.harness import cache
 from openreloc_bench.harness.ablations import ABLATED_METHOD, ABLATION_ROWS, ablation_label
-from openreloc_bench.harness.executors import exit_with, make_executor, mp_context
-from openreloc_bench.harness.score import (
-    QUERY_COLUMNS,
-    Outcome,
-    score_split,
-    with_difficulty,
+from openreloc_bench.harness.executors import make_executor
+from openreloc_bench.harness.jobs import (
+    MapJob,
+    MethodRun,
+    QueryJob,
+    counting_queries,
+    finished,
+    run_map_job,
+    run_query_job,
 )
-from openreloc_bench.harness.tables import backfill_difficulty, read_query_csv
-from openreloc_bench.methods import (
-    DEFAULT_TRACK,
-    MASK_FREE,
-    TRACKS,
-    Failure,
-    PoseEstimate,
-    QueryFrame,
-    Relocalizer,
-    create_method,
-    map_config,
-    method_config,
-    recorded_track,
-    uses_masks,
-)
-
-log = logging.getLogger(__name__)
-
-MARKER_KEYS = ("git_commit", "spec_hash", "config_hash", "split", "scene", "track", "method")
-"""What every finished job's marker records (the provenance columns of its per-query rows)."""
-RESUME_KEYS = ("config_hash", "map_hash", "spec_hash", "track", "split")
-"""What a finished job's marker must agree on with the job asked for, for ``--resume`` to reuse it."""
-MAP_RECORD_KEYS = ("map_bytes", "mapping_time_s")
-"""The numbers every finished map's record holds (its size and build time in the tables)."""
-
-
-@dataclass
-class MethodRun:
-    """One method variant to evaluate (a registered method plus config overrides)."""
-
-    label: str
-    """Name in the results and the leaderboard, e.g. ``openreloc`` or ``openreloc+no_refine``."""
-    method: str
-    """Registry name."""
-    overrides: dict[str, Any] = field(default_factory=dict)
-    """Config overrides passed to the method's constructor."""
-    seed: int | None = None
-    """The method's ``seed`` setting in this run, when the evaluation repeats the variant over seeds."""
-    variant: str = ""
-    """The label without its seed: the tables pool every seed of a variant under it (empty: the label)."""
-
-    def with_seed(self, seed: int) -> MethodRun:
-        """This variant run with ``seed`` (labelled ``<label>@seed<N>``)."""
-        return MethodRun(f"{self.label}@seed{seed}", self.method, {**self.overrides, "seed": seed}, seed, self.label)
-
-
-@dataclass
-class MapJob:
-    run: MethodRun
-    scene_dir: Path
-    map_dir: Path
-    spec_hash: str
-    track: str
-    """The mapping frames carry the dataset's instance masks only in the oracle-mask track (never in
-    ``mask-free``)."""
-    timeout_s: float
-    """Limit on building the map, in seconds; 0 = none (built in the job's own process)."""
-    provenance: dict[str, Any]
-    plugins: list[str]
-    n_frames: int = 0
-    """Mapping frames (the progress bar counts them)."""
-
-
-@dataclass
-class QueryJob:
-    run: MethodRun
-    scene_dir: Path
-    split: str
-    track: str
-    """The recorded track: the queries carry the dataset's instance masks only in ``oracle-mask``."""
-    map_dir: Path
-    out_dir: Path
-    timeout_s: float
-    """Per-query limit in seconds; 0 = none (queries run in the job's own process)."""
-    map_timeout_s: float
-    """Limit on loading the map in the query worker, in seconds (used with ``timeout_s``)."""
-    provenance: dict[str, Any]
-    plugins: list[str]
-    n_queries: int = 0
-    """Queries of the split (the progress bar counts them)."""
-
-    @property
-    def marker(self) -> Path:
-        return self.out_dir / f"{self.split}.done.json"
-
-
-# --------------------------------------------------------------------------------------------
-# One query
-# --------------------------------------------------------------------------------------------
-
-
-def query_frame(seq: SceneSequence, i: int, track: str) -> QueryFrame:
-    """What the method sees: RGB + K, plus the dataset's instance masks in the oracle-mask track."""
-    f = seq[i]
-    return QueryFrame(f.name, f.color, f.K, f.instance if track == "oracle-mask" else None)
-
-
-def localize_one(method: Relocalizer, query: QueryFrame) -> Outcome:
-    """Call the method once, timing only its own call; any exception or bad answer is a failure."""
-    t0 = time.perf_counter()
-    try:
-        res = method.localize(query)
-    except Exception as e:  # noqa: BLE001 -- a method bug fails this query, not the run
-        return Outcome(query.name, None, time.perf_counter() - t0, f"raised {type(e).__name__}: {e}"[:300])
-    dt = time.perf_counter() - t0
-    if res is None:
-        return Outcome(query.name, None, dt, "no estimate")
-    if isinstance(res, Failure):
-        return Outcome(query.name, None, dt, res.reason or "failure")
-    if not isinstance(res, PoseEstimate):
-        return Outcome(query.name, None, dt, f"invalid return type {type(res).__name__}")
-    T = np.asarray(res.T_wc, dtype=np.float64)
-    if T.shape != (4, 4) or not geometry.is_rigid(T):
-        return Outcome(query.name, None, dt, "invalid pose (not a finite rigid 4x4 transform)")
-    return Outcome(query.name, T, dt)
-
-
-def _load_method(job: QueryJob) -> tuple[Relocalizer, SceneSequence, float]:
-    plugins.load_plugins(job.plugins)
-    method = create_method(job.run.method, **job.run.overrides)
-    t0 = time.perf_counter()
-    method.load_map(job.map_dir)
-    seq = Scene(job.scene_dir).sequence(job.split)
-    seq.load_instances = job.track == "oracle-mask"
-    return method, seq, time.perf_counter() - t0
-
-
-def _serve(conn: Any, job: QueryJob) -> None:
-    """Query-server child: load the map once, then answer query indices until told to stop."""
-    exit_quietly_on_interrupt()
-    try:
-        method, seq, load_s = _load_method(job)
-    except Exception as e:  # noqa: BLE001 -- reported by the parent as this job's one-line error
-        conn.send(("error", f"{type(e).__name__}: {e}"))
-        return
-    conn.send(("ready", load_s))
-    while (i := conn.recv()) is not None:
-        conn.send(localize_one(method, query_frame(seq, i, job.track)))
-
-
-class QueryServer:
-    """A child process running the method, so a hung query can be abandoned by killing it."""
-
-    def __init__(self, job: QueryJob):
-        self.job = job
-        self.load_s = 0.0
-        self.restarts = -1
-        self._proc: Any = None
-        self._conn: Any = None
-
-    def _start(self) -> None:
-        ctx = mp_context()
-        self._conn, child = ctx.Pipe()
-        self._proc = ctx.Process(target=_serve, args=(child, self.job), daemon=True)
-        self._proc.start()
-        child.close()
-        self.restarts += 1
-        if not self._conn.poll(self.job.map_timeout_s or None):
-            self._stop()
-            raise RuntimeError(f"loading the map timed out after {self.job.map_timeout_s:g} s")
-        try:
-            status, value = self._conn.recv()
-        except EOFError:
-            code = self._stop()
-            raise RuntimeError(f"loading the map failed in the query worker (exit code {code})") from None
-        if status == "error":
-            self._stop()
-            raise RuntimeError(f"loading the map failed: {value}")
-        self.load_s += value
-
-    def ask(self, i: int, name: str) -> Outcome:
-        if self._proc is None:
-            self._start()
-        self._conn.send(i)
-        if self._conn.poll(self.job.timeout_s):
-            try:
-                return self._conn.recv()
-            except EOFError:
-                pass
-            code = self._stop()
-            return Outcome(name, None, float("nan"), f"worker died (exit code {code})")
-        self._stop()
-        return Outcome(name, None, self.job.timeout_s, f"timeout after {self.job.timeout_s:g} s")
-
-    def _stop(self) -> int | None:
-        self._proc.kill()
-        self._proc.join()
-        code = self._proc.exitcode
-        self._conn.close()
-        self._proc = self._conn = None
-        return code
-
-    def close(self) -> None:
-        if self._proc is not None:
-            self._conn.send(None)
-            self._proc.join(timeout=10)
-            if self._proc.is_alive():
-                self._stop()
-
-
-_query_done: Callable[[], None] | None = None
-"""Called after every query this process localizes: the inline executor's progress bar (see
-:func:`_progress`); None in worker processes, whose jobs the bar counts when they finish."""
-
-
-def _localized(outcome: Outcome) -> Outcome:
-    if _query_done is not None:
-        _query_done()
-    return outcome
-
-
-def _localize_all(job: QueryJob) -> tuple[SceneSequence, dict[str, Outcome], float]:
-    if job.timeout_s <= 0:
-        method, seq, load_s = _load_method(job)
-        outcomes = {
-            n: _localized(localize_one(method, query_frame(seq, i, job.track))) for i, n in enumerate(seq.names)
-        }
-        return seq, outcomes, load_s
-    seq = Scene(job.scene_dir).sequence(job.split)
-    server = QueryServer(job)
-    try:
-        outcomes = {n: _localized(server.ask(i, n)) for i, n in enumerate(seq.names)}
-    finally:
-        server.close()
-    return seq, outcomes, server.load_s
-
-
-# --------------------------------------------------------------------------------------------
-# Jobs (top-level functions: executors pickle them)
-# --------------------------------------------------------------------------------------------
-
-
-def run_map_job(job: MapJob) -> dict[str, Any]:
-    """Build (or reuse) one map; returns its record, or ``{"error": ...}``.
-
-    With a time limit the map is built in a child process that is killed when the limit passes, so a
-    method hanging in ``build_map`` fails its own map instead of hanging the evaluation.
-    """
-    if job.timeout_s <= 0:
-        return _build_map(job)
-    ctx = mp_context()
-    recv, send = ctx.Pipe(duplex=False)
-    proc = ctx.Process(target=_build_map_child, args=(send, job, os.getpid()))
-    proc.start()
-    send.close()
-    try:
-        if recv.poll(job.timeout_s):
-            try:
-                return recv.recv()
-            except EOFError:
-                proc.join()
-                return {"error": f"the map worker died (exit code {proc.exitcode})"}
-        proc.kill()
-        return {"error": f"building the map timed out after {job.timeout_s:g} s"}
-    finally:
-        # a child that answered exits by itself; killing it on its way out would leave the semaphores
-        # it made (torch, tqdm) to the resource tracker, which then warns about leaks at shutdown
-        proc.join(timeout=30)
-        if proc.is_alive():
-            proc.kill()
-            proc.join()
-        recv.close()
-
-
-def _build_map_child(conn: Any, job: MapJob, parent_pid: int) -> None:
-    exit_with(parent_pid)
-    conn.send(_build_map(job))
-    conn.close()
-
-
-def _build_map(job: MapJob) -> dict[str, Any]:
-    try:
-        plugins.load_plugins(job.plugins)
-        method = create_method(job.run.method, **job.run.overrides)
-        paths.check_output(job.map_dir, [job.scene_dir], "map directory")
-        mapping = Scene(job.scene_dir).sequence("mapping")
-        mapping.load_instances = job.track == "oracle-mask"
-        with bars.quiet():  # the evaluation's bar counts the frames
-            return cache.build_map_cached(method, mapping, job.map_dir, job.spec_hash, job.provenance)
-    except Exception as e:  # noqa: BLE001 -- reported per job; other jobs go on
-        log.debug("map job failed", exc_info=True)
-        return {"error": f"{type(e).__name__}: {e}"}
-
-
-def run_query_job(job: QueryJob) -> dict[str, Any]:
-    """Localize and score every query of one split; returns the done-marker content or ``{"error": ...}``."""
-    try:
-        return _run_query_job(job)
-    except Exception as e:  # noqa: BLE001
-        log.debug("query job failed", exc_info=True)
-        return {"error": f"{type(e).__name__}: {e}"}
-
-
-def _run_query_job(job: QueryJob) -> dict[str, Any]:
-    job.marker.unlink(missing_ok=True)  # a recomputed job is unfinished until its new marker exists
-    started = datetime.now(timezone.utc).isoformat(timespec="seconds")
-    t0 = time.perf_counter()
-    seq, outcomes, load_s = _localize_all(job)
-    table = with_difficulty(score_split(seq, outcomes), Scene(job.scene_dir), job.split)
-    poses = {n: o.T_wc for n, o in outcomes.items() if o.T_wc is not None}
-    prov = job.provenance
-    comments = [
-        f"method {job.run.label} ({prov['config_hash']}), track {job.track}, scene {prov['scene']}, "
-        f"spec {prov['spec_hash']}, commit {prov['git_commit']}"
-    ]
-    job.out_dir.mkdir(parents=True, exist_ok=True)
-    write_results(job.out_dir / f"{job.split}.txt", poses, comments)
-    stamps = {n: float(i) for i, n in enumerate(seq.names)}  # the query's index in the split, for evo
-    write_tum(job.out_dir / f"{job.split}.tum", poses, stamps)
-    write_tum(job.out_dir / f"{job.split}.gt.tum", dict(zip(seq.names, seq.poses)), stamps)
-    io.atomic_write_text(job.out_dir / f"{job.split}.queries.csv", table.to_csv(index=False))
-    runtime = table["runtime_s"].to_numpy()
-    record = {
-        **prov,
-        "split": job.split,
-        "track": job.track,
-        "n_queries": len(table),
-        "n_success": int(table["success"].sum()),
-        "load_map_s": load_s,
-        "localize_s": float(np.nansum(runtime)),
-        "job_wall_s": time.perf_counter() - t0,
-        "timeout_s": job.timeout_s,
-        "started": started,
-        "finished": datetime.now(timezone.utc).isoformat(timespec="seconds"),
-    }
-    io.write_json(job.marker, record)
-    return record
-
-
-# --------------------------------------------------------------------------------------------
-# Planning and running an evaluation
-# --------------------------------------------------------------------------------------------
+from openreloc_bench.methods import Relocalizer, create_method, method_config, recorded_track
+from openreloc_bench.tracks import DEFAULT_TRACK, MASK_FREE, ORACLE_MASK, TRACKS, Track
 
 
 @dataclass
@@ -397,7 +52,7 @@ class EvalConfig:
     """Method variants to evaluate."""
     splits: list[str] = field(default_factory=lambda: ["query"])
     """Query splits to localize."""
-    track: str = DEFAULT_TRACK
+    track: Track = DEFAULT_TRACK
     """``oracle-mask`` (queries carry the dataset's instance masks) or ``predicted`` (RGB only)."""
     executor: str = "local"
     """``local`` (process pool; inline with one worker) or ``ray``."""
@@ -456,7 +111,7 @@ def plan(cfg: EvalConfig) -> tuple[list[MapJob], list[QueryJob]]:
             # an incomplete or inconsistent scene fails here, before any work
             sizes[name, split] = len(scene.sequence(split))
         scene.difficulty()  # so does a broken difficulty table (the query tables join it)
-        if cfg.track == "oracle-mask":
+        if cfg.track == ORACLE_MASK:
             for split in cfg.splits:
                 if not (scene.root / split / "instance").is_dir():
                     raise DataError(scene.root / split, "no instance masks: use --track predicted")
@@ -468,7 +123,7 @@ def plan(cfg: EvalConfig) -> tuple[list[MapJob], list[QueryJob]]:
         mcfg = method_config(method)
         chash = cache.config_hash(mcfg)
         track = recorded_track(method, cfg.track)  # also which masks the map is built from
-        map_hash = cache.config_hash({**map_config(method), "masks": track})
+        map_hash = cache.map_key(method, track)
         for name, scene in scenes.items():
             spec = scene.spec_hash
             # rebuilt (removed first) when stale: confined to the cache, whatever a plugin names its method
@@ -559,18 +214,6 @@ def evaluate(cfg: EvalConfig) -> EvalReport:
         return _evaluate(cfg, map_jobs, query_jobs)
 
 
-def finished(job: QueryJob) -> bool:
-    """Whether ``job``'s marker exists and records the config, map, scene spec, track and split asked for."""
-    if not job.marker.is_file():
-        return False
-    try:
-        done = io.read_json(job.marker)
-    except DataError:  # a damaged marker: the job is recomputed
-        return False
-    want = {**job.provenance, "track": job.track, "split": job.split}
-    return isinstance(done, dict) and all(done.get(k) == want[k] for k in RESUME_KEYS)
-
-
 def _evaluate(cfg: EvalConfig, map_jobs: list[MapJob], query_jobs: list[QueryJob]) -> EvalReport:
     t0 = time.perf_counter()
     report = EvalReport()
@@ -630,70 +273,11 @@ def _progress(desc: str, unit: str, total: int, per_item: bool = False) -> Itera
     With ``per_item`` the queries a job localizes in this process (inline executor) tick the bar one by
     one; jobs run elsewhere advance it by their size when they finish.
     """
-    global _query_done
     with _Bar(total=total, desc=desc, unit=unit, disable=not total, dynamic_ncols=True) as bar:
 
         def tick() -> None:
             bar.ticked += 1
             bar.update()
 
-        _query_done = tick if per_item else None
-        try:
+        with counting_queries(tick) if per_item else nullcontext():
             yield bar
-        finally:
-            _query_done = None
-
-
-def load_run_queries(out: Path) -> pd.DataFrame:
-    """Every finished job's per-query rows under ``out/runs``, with the job's provenance columns and
-    ``uses_masks``; where two jobs answered the same query on the same recorded track, the later one."""
-    frames = []
-    for marker in sorted((out / "runs").glob("*/*/*/*.done.json")):
-        rec = io.read_json(marker)
-        missing = [k for k in MARKER_KEYS if not isinstance(rec, dict) or k not in rec]
-        if missing:
-            raise DataError(marker, f"no '{missing[0]}': not a finished job's marker (remove it to recompute the job)")
-        df = read_query_csv(marker.with_name(f"{rec['split']}.queries.csv"), QUERY_COLUMNS)
-        df.insert(0, "map_hash", rec.get("map_hash", rec["config_hash"]))  # older runs keyed maps by the full config
-        rec = {**rec, **marker_track(rec)}
-        for key in MARKER_KEYS:
-            df.insert(0, key, rec[key])
-        df["uses_masks"] = rec["uses_masks"]
-        df["variant"] = rec.get("variant", rec["method"])  # runs from before seeds: their own variant
-        df["seed"] = pd.array([rec.get("seed")] * len(df), dtype="Int64")
-        df["_finished"] = rec.get("finished", "")
-        frames.append(backfill_difficulty(df))
-    if not frames:
-        return pd.DataFrame()
-    q = pd.concat(frames, ignore_index=True).sort_values("_finished", kind="stable")
-    q = q.drop_duplicates(["method", "track", "scene", "split", "query"], keep="last").sort_index()
-    return q.drop(columns="_finished").reset_index(drop=True)
-
-
-def marker_track(rec: dict[str, Any]) -> dict[str, Any]:
-    """A finished job's recorded ``track`` and ``uses_masks``. Markers written before the track was
-    recorded from the method's declaration (no ``uses_masks``) name the track the run was asked for:
-    a method registered here as reading no masks is read as ``mask-free`` (the rule the board applied
-    when drawing them), any other keeps its track."""
-    if "uses_masks" in rec:
-        return {"track": rec["track"], "uses_masks": bool(rec["uses_masks"])}
-    masks = uses_masks(rec.get("registry_name", rec["method"]))
-    return {"track": rec["track"] if masks else MASK_FREE, "uses_masks": masks}
-
-
-def load_map_records(out: Path) -> pd.DataFrame:
-    """Mapping time and map size of every cached map, one row per (map hash, scene)."""
-    rows = []
-    for p in sorted((out / "maps").glob("*/*/*.done.json")):
-        r = io.read_json(p)
-        if not isinstance(r, dict) or not all(isinstance(r.get(k), (int, float)) for k in MAP_RECORD_KEYS):
-            raise DataError(p, "not a finished map's record (remove it: the map is rebuilt by the next eval)")
-        rows.append(
-            {
-                "map_hash": p.parent.name,
-                "scene": p.name[: -len(".done.json")],
-                "map_mb": r["map_bytes"] / 1e6,
-                "mapping_time_s": r["mapping_time_s"],
-            }
-        )
-    return pd.DataFrame(rows, columns=["map_hash", "scene", "map_mb", "mapping_time_s"])

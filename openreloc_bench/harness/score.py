@@ -14,15 +14,10 @@ import pandas as pd
 
 from openreloc_bench import geometry
 from openreloc_bench.data.results import header_track, hloc_name, read_submission
-from openreloc_bench.data.scene import DIFFICULTY_COLUMNS, Scene
+from openreloc_bench.data.scene import DIFFICULTY_AXES, Scene
 from openreloc_bench.data.types import SceneSequence
 from openreloc_bench.errors import ConfigError, DataError
-from openreloc_bench.methods import DEFAULT_TRACK, MASK_FREE
-
-QUERY_COLUMNS = (
-    "query", "success", "t_err_m", "r_err_deg", "runtime_s", "reason",
-    "gt_x", "gt_y", "gt_z", "est_x", "est_y", "est_z",
-)  # fmt: skip
+from openreloc_bench.tracks import DEFAULT_TRACK, MASK_FREE
 
 
 @dataclass
@@ -38,7 +33,7 @@ class Outcome:
 
 
 def score_split(seq: SceneSequence, outcomes: dict[str, Outcome]) -> pd.DataFrame:
-    """One row per ground-truth query of ``seq`` (columns :data:`QUERY_COLUMNS`).
+    """One row per ground-truth query of ``seq`` (columns :data:`~openreloc_bench.data.runs.QUERY_COLUMNS`).
 
     Queries without an outcome are failures ("missing"); outcomes for names that are not queries of
     this split are a caller error (the pose file names the wrong split or frames).
@@ -70,10 +65,6 @@ def score_split(seq: SceneSequence, outcomes: dict[str, Outcome]) -> pd.DataFram
         "gt_x": gt[:, 0, 3], "gt_y": gt[:, 1, 3], "gt_z": gt[:, 2, 3],
         "est_x": est[:, 0, 3], "est_y": est[:, 1, 3], "est_z": est[:, 2, 3],
     })  # fmt: skip
-
-
-DIFFICULTY_AXES = DIFFICULTY_COLUMNS[2:]
-"""The difficulty columns of the per-query tables, joined from each scene's ``difficulty.csv``."""
 
 
 def split_difficulty(scene: Scene, split: str) -> pd.DataFrame:

@@ -11,7 +11,6 @@ paper's tables and the leaderboard (:func:`pool_seeds`).
 
 from __future__ import annotations
 
-import io as _io
 import json
 import math
 from pathlib import Path
@@ -21,10 +20,8 @@ import numpy as np
 import pandas as pd
 
 from openreloc_bench.data import io
-from openreloc_bench.errors import DataError
 from openreloc_bench.harness.ablations import ABLATION_ROWS, FULL_ROW, ROBUSTNESS_ROWS, ablation_label
 from openreloc_bench.harness.metrics import METRIC_COLUMNS, summarize
-from openreloc_bench.harness.score import DIFFICULTY_AXES
 
 SCENE_KEYS = ["method", "track", "scene", "split"]
 SUITE_KEYS = ["method", "track", "split"]
@@ -34,40 +31,6 @@ COMPACT_COLUMNS = {
     "mte_25cm_m": "MTE@25[m]", "mre_25cm_deg": "MRE@25[°]", "median_te_m": "med TE[m]", "median_re_deg": "med RE[°]",
     "map_mb": "map MB", "latency_median_ms": "lat[ms]",
 }  # fmt: skip
-
-
-def read_query_csv(path: Path, columns: tuple[str, ...]) -> pd.DataFrame:
-    """A per-query table (``<split>.queries.csv``, ``tables/queries.csv``) with at least ``columns``;
-    DataError naming the file when it is not UTF-8 CSV, lacks a column, or holds a non-number where
-    an error, position, difficulty or data version is expected (a truncated or edited file)."""
-    try:
-        df = pd.read_csv(_io.StringIO(io.read_text(path)), dtype={"reason": str})
-    except (pd.errors.ParserError, pd.errors.EmptyDataError, ValueError) as e:
-        raise DataError(path, f"not a readable CSV table ({' '.join(str(e).split())})") from None
-    missing = [c for c in columns if c not in df]
-    if missing:
-        raise DataError(path, f"no column '{missing[0]}': not a per-query table of openreloc-bench")
-    numeric = [c for c in df if c.endswith(("_m", "_deg", "_s")) or c[:3] in ("gt_", "est")]
-    checked = [c for c in df if (c in numeric and c in columns) or c in (*DIFFICULTY_AXES, "data_version")]
-    bad = [c for c in checked if not pd.api.types.is_numeric_dtype(df[c])]
-    if len(df) and (bad or ("success" in columns and not pd.api.types.is_bool_dtype(df["success"]))):
-        raise DataError(
-            path, f"column '{(bad or ['success'])[0]}' holds values of the wrong type (truncated or edited)"
-        )
-    if "reason" in df:
-        df["reason"] = df["reason"].fillna("")
-    return df
-
-
-def backfill_difficulty(queries: pd.DataFrame) -> pd.DataFrame:
-    """Per-query rows (with their ``spec_hash``) given the difficulty and ``data_version`` columns that tables
-    written before those existed lack: no difficulty, and data v1 for generated scenes (the data before versions
-    were recorded), none for imported ones (their spec hash is ``file:`` and a hash of their scene.json)."""
-    out = queries.assign(**{c: np.nan for c in DIFFICULTY_AXES if c not in queries})
-    if "data_version" not in out:
-        imported = out["spec_hash"].astype(str).str.startswith("file:")
-        out["data_version"] = pd.Series(1, index=out.index, dtype="Int64").mask(imported)
-    return out
 
 
 def metric_table(queries: pd.DataFrame, keys: list[str], maps: pd.DataFrame) -> pd.DataFrame:

@@ -75,7 +75,7 @@ def test_bench_localize_pools_the_queries_of_map_scene_pairs(tmp_path: Path) -> 
         pairs += ["--map", str(map_dir), "--scene", str(scene)]
     done = run_benchmark("bench_localize.py", *pairs, "--method", "nearest-frame", "--set", "thumb_size=8")
     assert done.returncode == 0, done.stderr
-    assert "nearest-frame on tiny0, tiny1 / query (oracle-mask, 7 queries, one at a time)" in done.stdout
+    assert "nearest-frame on tiny0, tiny1 / query (predicted, 7 queries, one at a time)" in done.stdout  # the default
     assert "localized 7/7" in done.stdout
     assert f"median error {np.median(errors) * 100:.1f} cm" in done.stdout
 

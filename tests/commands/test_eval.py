@@ -16,7 +16,8 @@ from harness_test_methods import make_scene  # noqa: E402
 
 from openreloc_bench.cli import main  # noqa: E402
 from openreloc_bench.data import io  # noqa: E402
-from openreloc_bench.harness.runner import load_run_queries  # noqa: E402
+from openreloc_bench.data.runs import load_run_queries  # noqa: E402
+from openreloc_bench.methods import uses_masks  # noqa: E402
 
 HARNESS_TESTS = str(Path(__file__).resolve().parents[1] / "harness")
 
@@ -63,7 +64,7 @@ def test_eval_prints_a_metrics_table(data: Path, tmp_path: Path, capsys: pytest.
     assert rc == 0
     assert "R@50cm%" in out and "test-oracle predicted query" in out  # the default track
     assert "nearest-frame mask-free query" in out  # declares it reads no masks
-    q = load_run_queries(tmp_path / "r")
+    q = load_run_queries(tmp_path / "r", uses_masks)
     assert (q[q.method == "test-oracle"]["t_err_m"].round(6) == 0.3).all()
 
 
@@ -161,7 +162,7 @@ def test_killed_run_resumes_without_recomputing_or_duplicating(data: Path, tmp_p
     done_after = {p: p.read_text() for p in out.glob("runs/*/*/*/*.done.json")}
     assert len(done_after) == 4
     assert all(done_after[p] == text for p, text in done_before.items())  # finished jobs not recomputed
-    q = load_run_queries(out)
+    q = load_run_queries(out, uses_masks)
     assert len(q) == 2 * 2 * 3 and not q.duplicated(["scene", "split", "query"]).any() and q["success"].all()
     assert not list(out.rglob("*.tmp"))
     assert len(io.read_json(out / "tables" / "queries.json")) == 12

@@ -11,7 +11,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "data"))
 from test_convert import write_sens_export, write_tum_sequence  # noqa: E402
 
 from openreloc_bench.cli import main  # noqa: E402
-from openreloc_bench.harness.runner import load_run_queries  # noqa: E402
+from openreloc_bench.data.runs import load_run_queries  # noqa: E402
+from openreloc_bench.methods import uses_masks  # noqa: E402
 
 
 def test_imported_scannet_scene_is_evaluated(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
@@ -33,7 +34,7 @@ def test_imported_scannet_scene_is_evaluated(tmp_path: Path, capsys: pytest.Capt
         ]
     )
     assert rc == 0
-    queries = load_run_queries(tmp_path / "r")
+    queries = load_run_queries(tmp_path / "r", uses_masks)
     assert sorted(queries["query"]) == ["query/000010", "query/000030"]
     # the cameras slide along y: queries at 0.1 and 0.3 m, mapping frames at 0 and 0.4 m
     assert set(queries["t_err_m"].round(6)) <= {0.1, 0.3}
@@ -48,7 +49,7 @@ def test_imported_tum_sequence_is_evaluated_on_the_predicted_track(tmp_path: Pat
     )
     args = ["eval", "--scenes", "fr1_xyz", "--data", str(data), "--methods", "nearest-frame", "--track", "predicted"]
     assert main([*args, "--out", str(tmp_path / "r")]) == 0
-    assert len(load_run_queries(tmp_path / "r")) == 2
+    assert len(load_run_queries(tmp_path / "r", uses_masks)) == 2
 
 
 @pytest.mark.parametrize(

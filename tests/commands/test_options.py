@@ -14,7 +14,7 @@ from openreloc_bench.cli import build_parser, main
 from openreloc_bench.envs.base import EnvConfig
 from openreloc_bench.harness.diagnose import DiagnoseOptions
 from openreloc_bench.harness.runner import EvalConfig
-from openreloc_bench.methods import DEFAULT_TRACK
+from openreloc_bench.tracks import DEFAULT_TRACK
 from tests.conftest import FREE_PLUGIN, write_tiny_scene
 
 PLUGIN_COMMANDS = {

@@ -12,10 +12,12 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
+from openreloc_bench.data.runs import load_run_queries
 from openreloc_bench.errors import ConfigError
 from openreloc_bench.harness import runner
 from openreloc_bench.harness.executors import InlineExecutor, LocalExecutor, make_executor
 from openreloc_bench.harness.runner import EvalConfig, MethodRun
+from openreloc_bench.methods import uses_masks
 
 
 def _square(x: int) -> int:
@@ -119,7 +121,7 @@ def test_ray_gives_the_same_results_as_inline(data_dir: Path, tmp_path: Path) ->
             if name == "inline":
                 cfg.workers = 1
             assert runner.evaluate(cfg).errors == []
-            frames.append(runner.load_run_queries(tmp_path / name).drop(columns="runtime_s"))
+            frames.append(load_run_queries(tmp_path / name, uses_masks).drop(columns="runtime_s"))
     finally:
         ray.shutdown()
     pd.testing.assert_frame_equal(frames[0], frames[1])

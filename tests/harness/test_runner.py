@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -13,10 +11,12 @@ from harness_test_methods import DIFFICULTY, difficulty_scene, make_scene
 
 from openreloc_bench.data import io
 from openreloc_bench.data.results import read_results, read_tum_trajectory
+from openreloc_bench.data.runs import load_map_records, load_run_queries
+from openreloc_bench.data.scene import DIFFICULTY_AXES
 from openreloc_bench.errors import ConfigError, DataError
-from openreloc_bench.harness import runner, tables
+from openreloc_bench.harness import jobs, runner, tables
 from openreloc_bench.harness.runner import EvalConfig, MethodRun
-from openreloc_bench.harness.score import DIFFICULTY_AXES
+from openreloc_bench.methods import uses_masks
 
 PLUGIN = ["harness_test_methods"]
 
@@ -58,12 +58,12 @@ def test_eval_writes_poses_tum_tables_and_provenance(data_dir: Path, tmp_path: P
         },
     }
     assert marker["track"] == "oracle-mask" and marker["spec_hash"] == "hash-sA-1" and marker["git_commit"]
-    q = runner.load_run_queries(tmp_path)
+    q = load_run_queries(tmp_path, uses_masks)
     assert len(q) == 2 * 2 * 2 * 3
     oracle = q[q["method"] == "test-oracle"]
     np.testing.assert_allclose(oracle["t_err_m"], 0.1, atol=1e-6)
     np.testing.assert_allclose(oracle["r_err_deg"], 2.0, atol=1e-4)
-    scenes, suite, seeds = tables.write_tables(tmp_path / "tables", q, runner.load_map_records(tmp_path))
+    scenes, suite, seeds = tables.write_tables(tmp_path / "tables", q, load_map_records(tmp_path))
     row = suite[(suite.method == "test-oracle") & (suite.split == "query")].iloc[0]
     assert row.recall_25cm == 100.0 and row.n_scenes == 2 and row.n_queries == 6
     assert row.mte_25cm_m == pytest.approx(0.1) and row.mre_25cm_deg == pytest.approx(2.0, abs=1e-4)
@@ -94,7 +94,7 @@ def test_maps_of_mask_free_methods_serve_both_tracks(data_dir: Path, tmp_path: P
     predicted = runner.evaluate(cfg(data_dir, tmp_path, [free, masked], track="predicted"))
     assert (predicted.maps_built, predicted.maps_cached) == (2, 2)  # test-oracle reads masks: maps of its own
     assert sorted(p.name for p in (tmp_path / "runs" / "nearest-frame").iterdir()) == ["mask-free"]
-    q = runner.load_run_queries(tmp_path)
+    q = load_run_queries(tmp_path, uses_masks)
     runs = q.groupby(["method", "track"])["query"].count().to_dict()
     assert runs == {
         ("nearest-frame", "mask-free"): 6,
@@ -116,9 +116,9 @@ def test_a_method_declaring_no_masks_is_given_none_and_recorded_mask_free(
     marker = io.read_json(tmp_path / "runs" / "free" / "mask-free" / "sA" / "query.done.json")
     assert (marker["track"], marker["uses_masks"]) == ("mask-free", False)
     assert "track mask-free" in (tmp_path / "runs" / "free" / "mask-free" / "sA" / "query.txt").read_text()
-    q = runner.load_run_queries(tmp_path)
+    q = load_run_queries(tmp_path, uses_masks)
     assert q["success"].all() and set(q["track"]) == {"mask-free"}
-    _, suite, _ = tables.write_tables(tmp_path / "tables", q, runner.load_map_records(tmp_path))
+    _, suite, _ = tables.write_tables(tmp_path / "tables", q, load_map_records(tmp_path))
     assert "free mask-free query" in " ".join(tables.compact(suite).split())
 
 
@@ -138,7 +138,7 @@ def test_markers_from_before_recorded_tracks_read_by_the_method_declaration(data
         _as_legacy(marker, "predicted")
     for marker in (tmp_path / "runs" / "test-oracle").glob("*/*/*.done.json"):
         _as_legacy(marker, "oracle-mask")
-    q = runner.load_run_queries(tmp_path)
+    q = load_run_queries(tmp_path, uses_masks)
     tracks = q.groupby("method")[["track", "uses_masks"]].agg(lambda c: sorted(set(c))).to_dict("index")
     assert tracks == {
         "nearest-frame": {"track": ["mask-free"], "uses_masks": [False]},  # registered as reading no masks
@@ -148,22 +148,8 @@ def test_markers_from_before_recorded_tracks_read_by_the_method_declaration(data
     again = MethodRun("nearest-frame", "nearest-frame", {"thumb_size": 8})
     assert runner.evaluate(cfg(data_dir, tmp_path, [again], track="predicted")).errors == []
     new = io.read_json(tmp_path / "runs" / "nearest-frame" / "mask-free" / "sA" / "query.done.json")
-    free = runner.load_run_queries(tmp_path).query("method == 'nearest-frame'")
+    free = load_run_queries(tmp_path, uses_masks).query("method == 'nearest-frame'")
     assert len(free) == 6 and set(free["config_hash"]) == {new["config_hash"]}
-
-
-def test_raise_failure_and_hang_fail_one_query_each_and_the_run_goes_on(data_dir: Path, tmp_path: Path) -> None:
-    run = MethodRun(
-        "bad", "test-oracle", {"raise_on": "query/000000", "fail_on": "query/000001", "hang_on": "query/000002"}
-    )
-    report = runner.evaluate(cfg(data_dir, tmp_path, [run], timeout_s=2.0))
-    assert report.errors == [] and report.jobs_run == 2
-    q = runner.load_run_queries(tmp_path).set_index(["scene", "query"])
-    assert q.loc[("sA", "query/000000"), "reason"] == "raised RuntimeError: boom"
-    assert q.loc[("sA", "query/000001"), "reason"] == "no objects recognised"
-    assert q.loc[("sA", "query/000002"), "reason"] == "timeout after 2 s"
-    assert not q["success"].any() and np.isinf(q["t_err_m"]).all()
-    assert len(read_results(tmp_path / "runs" / "bad" / "oracle-mask" / "sA" / "query.txt")) == 0
 
 
 def test_predicted_track_hides_instances(data_dir: Path, tmp_path: Path) -> None:
@@ -171,10 +157,10 @@ def test_predicted_track_hides_instances(data_dir: Path, tmp_path: Path) -> None
         cfg(data_dir, tmp_path, [MethodRun("p", "test-oracle", {"expect_track": "predicted"})], track="predicted")
     )
     assert ok.errors == []
-    q = runner.load_run_queries(tmp_path)
+    q = load_run_queries(tmp_path, uses_masks)
     assert q["success"].all() and set(q["track"]) == {"predicted"}
     runner.evaluate(cfg(data_dir, tmp_path, [MethodRun("m", "test-oracle", {"expect_track": "predicted"})]))
-    q = runner.load_run_queries(tmp_path)
+    q = load_run_queries(tmp_path, uses_masks)
     assert q[q.method == "m"]["reason"].str.contains("got a oracle-mask query").all()
 
 
@@ -183,7 +169,7 @@ def test_local_pool_gives_the_same_results_as_inline(data_dir: Path, tmp_path: P
     frames = []
     for name, workers in [("inline", 1), ("pool", 2)]:
         assert runner.evaluate(cfg(data_dir, tmp_path / name, runs, workers=workers)).errors == []
-        frames.append(runner.load_run_queries(tmp_path / name).drop(columns="runtime_s"))
+        frames.append(load_run_queries(tmp_path / name, uses_masks).drop(columns="runtime_s"))
     pd.testing.assert_frame_equal(frames[0], frames[1])
 
 
@@ -191,12 +177,12 @@ def test_seeds_repeat_seeded_methods_and_share_their_maps(data_dir: Path, tmp_pa
     runs = [MethodRun("test-oracle", "test-oracle", {"noise_m": 0.2}), MethodRun("nearest-frame", "nearest-frame")]
     report = runner.evaluate(cfg(data_dir, tmp_path, runs, seeds=[0, 1]))
     assert report.errors == [] and report.maps_built == 4 and report.jobs_run == 6  # nearest-frame has no seed
-    q = runner.load_run_queries(tmp_path)
+    q = load_run_queries(tmp_path, uses_masks)
     assert sorted(q["method"].unique()) == ["nearest-frame", "test-oracle@seed0", "test-oracle@seed1"]
     seeded = q[q["variant"] == "test-oracle"]
     np.testing.assert_allclose(seeded["t_err_m"], 0.2 + 0.1 * seeded["seed"].to_numpy(dtype=float), atol=1e-6)
     assert q.loc[q["method"] == "nearest-frame", "seed"].isna().all()
-    _, suite, seeds = tables.write_tables(tmp_path / "tables", q, runner.load_map_records(tmp_path))
+    _, suite, seeds = tables.write_tables(tmp_path / "tables", q, load_map_records(tmp_path))
     assert set(suite["method"]) == {"nearest-frame", "test-oracle@seed0", "test-oracle@seed1"}
     row = seeds.set_index("variant").loc["test-oracle"]
     assert (row.n_seeds, row.n_queries) == (2, 6)
@@ -213,7 +199,7 @@ def test_a_single_run_of_a_seeded_variant_is_not_pooled_as_one_more_seed(data_di
     run = MethodRun("test-oracle", "test-oracle", {"noise_m": 0.2})
     runner.evaluate(cfg(data_dir, tmp_path, [run], splits=["query", "query_light1"]))
     runner.evaluate(cfg(data_dir, tmp_path, [run], seeds=[1, 2]))
-    pooled = tables.pool_seeds(runner.load_run_queries(tmp_path))
+    pooled = tables.pool_seeds(load_run_queries(tmp_path, uses_masks))
     query, light = pooled[pooled["split"] == "query"], pooled[pooled["split"] == "query_light1"]
     assert set(pooled["method"]) == {"test-oracle"} and sorted(query["seed"].unique()) == [1, 2]
     assert len(light) == 6 and light["seed"].isna().all()  # a split run once only stays
@@ -253,14 +239,14 @@ def test_query_tables_carry_the_scene_difficulty_and_older_tables_still_load(tmp
     light = pd.read_csv(runs / "sD" / "query_light1.queries.csv")
     np.testing.assert_array_equal(light["gap_deg"], [25.0, np.nan, 90.0])  # frame 000001 has no row
     assert light["data_version"].tolist() == [2, 2, 2]
-    q = runner.load_run_queries(out).set_index(["scene", "query"])
+    q = load_run_queries(out, uses_masks).set_index(["scene", "query"])
     assert q.loc[("sD", "query/000001"), "visible_objects"] == 2 and q.loc[("sD", "query/000002"), "gap_m"] == 1.5
     plain = q.loc["sP"]
     assert len(plain) == 6 and plain[[*DIFFICULTY_AXES, "data_version"]].isna().all().all()
     # a per-query table written before these columns existed: loads, with no difficulty and data v1
     old = runs / "sD" / "query.queries.csv"
     pd.read_csv(old).drop(columns=[*DIFFICULTY_AXES, "data_version"]).to_csv(old, index=False)
-    q = runner.load_run_queries(out).set_index(["scene", "split"])
+    q = load_run_queries(out, uses_masks).set_index(["scene", "split"])
     assert q.loc[("sD", "query"), "data_version"].tolist() == [1, 1, 1]
     assert q.loc[("sD", "query"), list(DIFFICULTY_AXES)].isna().all().all()
     assert q.loc[("sD", "query_light1"), "light_level"].tolist()[::2] == [0.7, 0.7]
@@ -290,23 +276,4 @@ def test_query_bar_ticks_per_query_inline_and_per_job_in_workers(
     assert sum(n for desc, n in steps if desc == "maps") == sum(
         len(list((data_dir / s / "mapping" / "pose").iterdir())) for s in ("sA", "sB")
     )
-    assert runner._query_done is None
-
-
-def test_a_map_process_that_answered_exits_by_itself(data_dir: Path, tmp_path: Path) -> None:
-    """Killing the map's process on its way out left its semaphores to the resource tracker, which
-    warned about leaks at the end of every evaluation that built maps."""
-    script = (
-        "import sys; sys.path.insert(0, sys.argv[1]); from pathlib import Path\n"
-        "from openreloc_bench.harness import runner\n"
-        "runs = [runner.MethodRun('o', 'test-oracle', {'slow_exit_s': 1.0})]\n"
-        "r = runner.evaluate(runner.EvalConfig(data=Path(sys.argv[2]), out=Path(sys.argv[3]), scenes=['sA'],\n"
-        "    runs=runs, plugins=['harness_test_methods'], timeout_s=0.0, map_timeout_s=60.0))\n"
-        "assert r.maps_built == 1 and not r.errors, r.errors\n"
-    )
-    here = str(Path(__file__).parent)
-    proc = subprocess.run(
-        [sys.executable, "-c", script, here, str(data_dir), str(tmp_path / "out")], capture_output=True, text=True
-    )
-    assert proc.returncode == 0, proc.stderr
-    assert "leaked semaphore" not in proc.stderr
+    assert jobs._query_done is None

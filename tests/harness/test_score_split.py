@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from harness_test_methods import DIFFICULTY, difficulty_scene, perturb
 
-from openreloc_bench.data.scene import DATA_VERSION, Scene
+from openreloc_bench.data.scene import DATA_VERSION, DIFFICULTY_AXES, Scene
 from openreloc_bench.errors import DataError
-from openreloc_bench.harness.score import DIFFICULTY_AXES, Outcome, score_split, with_difficulty
+from openreloc_bench.harness.score import Outcome, score_split, with_difficulty
 
 
 def test_score_split_rows(data_dir: Path) -> None:

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from openreloc_bench.harness import runner
+from openreloc_bench.harness import jobs, runner
 from openreloc_bench.harness.runner import EvalConfig, MethodRun
 from openreloc_bench.methods import available_methods
 from tests.baselines.conftest import CHEAP
@@ -17,7 +17,7 @@ def test_the_predicted_track_gives_no_method_an_instance_image(
     name: str, data_dir: Path, tmp_path: Path, monkeypatch
 ) -> None:
     seen: dict[str, list[bool]] = {"mapping": [], "queries": []}
-    create = runner.create_method
+    create = jobs.create_method
 
     def spy(method: str, **overrides):
         m = create(method, **overrides)
@@ -34,7 +34,7 @@ def test_the_predicted_track_gives_no_method_an_instance_image(
         m.build_map, m.localize = build_map, localize_spy
         return m
 
-    monkeypatch.setattr(runner, "create_method", spy)
+    monkeypatch.setattr(jobs, "create_method", spy)
     cfg = EvalConfig(
         data=data_dir, out=tmp_path, scenes=["sA"], runs=[MethodRun(name, name, CHEAP.get(name, {}))], track="predicted",
         timeout_s=0, map_timeout_s=0,
@@ -50,7 +50,7 @@ def test_the_oracle_track_gives_the_dataset_masks_to_methods_that_read_them(
 ) -> None:
     """A method declaring ``uses_masks = False`` gets none: its results are recorded for both tracks."""
     seen: list[bool] = []
-    create = runner.create_method
+    create = jobs.create_method
 
     def spy(method: str, **overrides):
         m = create(method, **overrides)
@@ -59,7 +59,7 @@ def test_the_oracle_track_gives_the_dataset_masks_to_methods_that_read_them(
         m.localize = lambda q: (seen.append(q.instance is not None), localize(q))[1]
         return m
 
-    monkeypatch.setattr(runner, "create_method", spy)
+    monkeypatch.setattr(jobs, "create_method", spy)
     run = MethodRun(name, name)
     runner.evaluate(
         EvalConfig(

@@ -33,7 +33,7 @@ from openreloc_bench.harness.leaderboard.rows import (
     recorded_tracks,
 )
 from openreloc_bench.harness.tables import build_tables, pool_seeds
-from openreloc_bench.methods import MASK_FREE
+from openreloc_bench.tracks import MASK_FREE
 
 
 def write_leaderboard(results: list[Path], out: Path, data: Path | None = None) -> list[Path]:

@@ -19,7 +19,7 @@ from openreloc_bench.harness.leaderboard.rows import (
 )
 from openreloc_bench.harness.leaderboard.verdict import verdict, verdict_lead
 from openreloc_bench.harness.tables import md_table, paper_table
-from openreloc_bench.methods import MASK_FREE
+from openreloc_bench.tracks import MASK_FREE
 
 
 def _by_track(b: pd.DataFrame) -> list[tuple[str, pd.DataFrame]]:

@@ -30,7 +30,7 @@ from openreloc_bench.harness.leaderboard.rows import (  # noqa: E402
     track_rank,
 )
 from openreloc_bench.harness.metrics import cumulative_curve  # noqa: E402
-from openreloc_bench.methods import MASK_FREE  # noqa: E402
+from openreloc_bench.tracks import MASK_FREE  # noqa: E402
 
 log = logging.getLogger(__name__)
 

@@ -11,12 +11,13 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from openreloc_bench.data.runs import QUERY_COLUMNS, backfill_difficulty, load_map_records, read_query_csv
 from openreloc_bench.errors import DataError
 from openreloc_bench.harness.ablations import ROBUSTNESS_ROWS
 from openreloc_bench.harness.metrics import summarize
-from openreloc_bench.harness.score import QUERY_COLUMNS
-from openreloc_bench.harness.tables import SCENE_KEYS, backfill_difficulty, read_query_csv
-from openreloc_bench.methods import MASK_FREE, uses_masks
+from openreloc_bench.harness.tables import SCENE_KEYS
+from openreloc_bench.methods import uses_masks
+from openreloc_bench.tracks import MASK_FREE
 
 BOARD_COLUMNS = {
     "method": "Method", "track": "Track", "split": "Split", "n_scenes": "Scenes", "n_seeds": "Seeds", "n_queries": "Queries",
@@ -88,8 +89,6 @@ def _last_run_per_query(q: pd.DataFrame) -> pd.DataFrame:
 
 def load_maps(results: list[Path]) -> pd.DataFrame:
     """Size and build time of every map cached under the results directories."""
-    from openreloc_bench.harness.runner import load_map_records
-
     return pd.concat([load_map_records(r) for r in results], ignore_index=True)
 
 

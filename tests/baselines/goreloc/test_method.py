@@ -5,7 +5,6 @@ from baselines.goreloc.method import GOReloc
 from openreloc_bench import geometry
 from openreloc_bench.data.scene import Scene
 from openreloc_bench.errors import ConfigError
-from openreloc_bench.harness.runner import query_frame
 from openreloc_bench.methods import Failure, PoseEstimate, QueryFrame, create_method
 from openreloc_bench.vision.base import ImageTextEncoder, ObjectMask, Segmenter, register_encoder, register_segmenter
 from openreloc_bench.vision.preprocess import mask_box
@@ -19,7 +18,7 @@ def world(tmp_path_factory):
 
 def _localize_all(method, scene, track):
     seq = scene.sequence("query")
-    out = [method.localize(query_frame(seq, i, track)) for i in range(len(seq))]
+    out = [method.localize(QueryFrame.from_frame(f, track)) for f in seq]
     est = np.array([r.T_wc if isinstance(r, PoseEstimate) else np.full((4, 4), np.nan) for r in out])
     return out, *geometry.pose_errors(seq.poses, est)
 

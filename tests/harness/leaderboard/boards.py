@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from openreloc_bench.harness.score import DIFFICULTY_AXES
+from openreloc_bench.data.scene import DIFFICULTY_AXES
 
 
 def runs(*rows: tuple[str, str, float, float, float], split: str = "query") -> pd.DataFrame:

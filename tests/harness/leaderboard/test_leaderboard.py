@@ -6,10 +6,10 @@ from pathlib import Path
 
 import pandas as pd
 
+from openreloc_bench.data.runs import backfill_difficulty
 from openreloc_bench.harness.leaderboard import write_leaderboard
 from openreloc_bench.harness.leaderboard.plots import plot_recall_vs_difficulty
 from openreloc_bench.harness.leaderboard.rows import data_versions
-from openreloc_bench.harness.tables import backfill_difficulty
 from tests.harness.leaderboard.boards import results_dir
 
 

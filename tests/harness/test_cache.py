@@ -1,0 +1,87 @@
+"""The one map builder and the map cache: what a map records it was built from, reuse, failed builds."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from baselines.nearest_frame import NearestFrame
+from openreloc_bench.cli import main
+from openreloc_bench.data import io, mapfile
+from openreloc_bench.data.scene import Scene
+from openreloc_bench.errors import ConfigError
+from openreloc_bench.harness import cache
+from openreloc_bench.harness.runner import EvalConfig, MethodRun, evaluate
+from openreloc_bench.tracks import MASK_FREE, ORACLE_MASK, PREDICTED
+from tests.conftest import write_tiny_scene
+
+
+class Masked(NearestFrame):
+    """nearest-frame reading the masks it is given: the track decides whether its frames carry them."""
+
+    seen: list[bool] = []
+
+    def build_map(self, mapping, map_dir: Path) -> None:
+        Masked.seen = [f.instance is not None for f in mapping]
+        super().build_map(mapping, map_dir)
+
+
+@pytest.mark.parametrize(("track", "masks"), [(ORACLE_MASK, True), (PREDICTED, False)])
+def test_a_cached_map_records_what_it_was_built_from_beside_its_files(tmp_path: Path, track: str, masks: bool) -> None:
+    scene = Scene(write_tiny_scene(tmp_path / "tiny"))
+    map_dir = tmp_path / "maps" / "m" / "key" / scene.name
+    rec = cache.cached_map(Masked(thumb_size=8), scene, track, map_dir, {"method": "m"})
+    assert Masked.seen == [masks] * 6
+    source = {"scene": "tiny", "spec_hash": "tiny-0", "track": track}
+    assert rec["built_from"] == io.read_json(cache.map_marker(map_dir))["built_from"] == source
+    assert rec["method"] == "m" and rec["n_mapping_frames"] == 6 and rec["map_bytes"] == cache.dir_bytes(map_dir)
+    assert mapfile.recorded_source(map_dir) is None  # the method's files are what it wrote
+    assert cache.map_source(map_dir) == source
+    marker = cache.map_marker(map_dir).stat().st_mtime_ns
+    assert cache.cached_map(Masked(thumb_size=8), scene, track, map_dir, {"method": "m"}) == rec  # reused
+    assert cache.map_marker(map_dir).stat().st_mtime_ns == marker
+
+
+class Broken(NearestFrame):
+    def build_map(self, mapping, map_dir: Path) -> None:
+        (map_dir / "part.bin").write_bytes(b"half a map")
+        (map_dir / "sub").mkdir()
+        raise RuntimeError("boom")
+
+
+def test_a_failed_build_leaves_an_empty_folder_and_no_record(tmp_path: Path) -> None:
+    scene = Scene(write_tiny_scene(tmp_path / "tiny"))
+    map_dir = tmp_path / "maps" / "tiny"
+    with pytest.raises(RuntimeError, match="boom"):
+        cache.cached_map(Broken(), scene, PREDICTED, map_dir, {})
+    assert not any(map_dir.iterdir()) and not cache.map_marker(map_dir).exists()
+
+
+def test_check_map_source_refuses_a_cached_map_of_another_scene_or_track(tmp_path: Path) -> None:
+    mapped = Scene(write_tiny_scene(tmp_path / "a", seed=0))
+    other = Scene(write_tiny_scene(tmp_path / "b", seed=1))
+    map_dir = tmp_path / "maps" / "a"
+    cache.cached_map(Masked(thumb_size=8), mapped, PREDICTED, map_dir, {})
+    cache.check_map_source(map_dir, mapped, PREDICTED)
+    with pytest.raises(ConfigError, match="map of scene 'a' .*tiny-0.*not of .*tiny-1"):
+        cache.check_map_source(map_dir, other)
+    with pytest.raises(ConfigError, match="map of the predicted track, not of the oracle-mask track"):
+        cache.check_map_source(map_dir, mapped, ORACLE_MASK)
+
+
+def test_localize_refuses_an_eval_map_of_another_scene(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    data = tmp_path / "data"
+    write_tiny_scene(data / "a", seed=0)
+    write_tiny_scene(data / "b", seed=1)
+    run = MethodRun("nearest-frame", "nearest-frame", {"thumb_size": 8})
+    assert evaluate(EvalConfig(data=data, out=tmp_path / "r", scenes=["a"], runs=[run], timeout_s=0)).errors == []
+    map_dir = next((tmp_path / "r" / "maps" / "nearest-frame").glob("*/a"))
+    assert cache.map_source(map_dir) == {"scene": "a", "spec_hash": "tiny-0", "track": MASK_FREE}
+    args = ["localize", "--method", "nearest-frame", "--set", "thumb_size=8", "--map", str(map_dir)]
+    out = tmp_path / "poses.txt"
+    capsys.readouterr()
+    assert main([*args, "--scene", str(data / "b"), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "map of scene 'a'" in err and "tiny-1" in err and "\n" not in err and not out.exists()
+    assert main([*args, "--scene", str(data / "a"), "--out", str(out)]) == 0

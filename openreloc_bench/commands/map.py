@@ -14,6 +14,7 @@ that declares it reads no masks); the map records its track, and ``localize`` re
 from __future__ import annotations
 
 import argparse
+import os
 from pathlib import Path
 
 from openreloc_bench.commands.options import TRACK_HELP, add_method_arguments, add_track_argument, method_overrides
@@ -39,13 +40,18 @@ def run(args: argparse.Namespace) -> int:
     method = create_method(args.method, **method_overrides(args))
     scene = Scene(args.scene)
     track = recorded_track(method, args.track)
-    # the directory holds the map alone (its size is the map's): a previous map there is replaced,
-    # anything else is refused; no other map build writes into it meanwhile
+    # the directory holds the map alone (its size is the map's): a previous map there is replaced once
+    # the new one is complete (built beside it), anything else is refused; no other build writes there
     with paths.directory_lock(args.out, "openreloc-bench map", in_directory=False):
-        mapfile.clear_file_set(args.out)
-        built = build_map(method, scene, track, args.out)
-        # what the map is of: `localize` refuses to pair it with another scene
-        mapfile.record_source(args.out, built[mapfile.SOURCE_KEY])
+        mapfile.replaceable_files(args.out)
+        with paths.staged(args.out) as stage:
+            built = build_map(method, scene, track, stage)
+            # what the map is of: `localize` refuses to pair it with another scene
+            mapfile.record_source(stage, built[mapfile.SOURCE_KEY])
+            mapfile.clear_file_set(args.out)
+            for part in sorted(stage.iterdir(), key=lambda f: f.name == mapfile.MANIFEST):  # the manifest last
+                os.rename(part, args.out / part.name)
+            stage.rmdir()
     size = dir_bytes(args.out)
     print(
         f"{args.method}: map of {built['n_mapping_frames']} mapping frames ({track} track) written to {args.out} "

@@ -102,18 +102,18 @@ def is_intact(directory: Path | str) -> bool:
     return True
 
 
-def clear_file_set(directory: Path | str) -> None:
-    """Make ``directory`` ready for a new file set: remove the one it holds (the files its manifest
-    lists, the manifest first) and dead writers' temp files; a missing or empty directory is ready.
+def replaceable_files(directory: Path | str) -> list[str]:
+    """The files of the file set ``directory`` holds (its manifest first), which a new set may replace;
+    none for a missing or empty directory. Dead writers' temp files are removed.
 
-    Anything else in it is refused with a ConfigError and nothing is removed: the directory is not a
-    file set (``map --out`` naming a folder of the user's), or the user's files are mixed into one, or
-    an interrupted build left payload files without a manifest; writing there would overwrite files of
-    the same names or count foreign bytes as the map's size.
+    Anything else in it is refused with a ConfigError: the directory is not a file set (``map --out``
+    naming a folder of the user's), or the user's files are mixed into one, or an interrupted build left
+    payload files without a manifest; writing there would overwrite files of the same names or count
+    foreign bytes as the map's size.
     """
     directory = Path(directory)
     if not directory.is_dir():
-        return
+        return []
     io.remove_stray_temps(directory)
     entries = {p.name for p in directory.iterdir()}
     manifest = directory / MANIFEST
@@ -132,8 +132,14 @@ def clear_file_set(directory: Path | str) -> None:
             f"{directory} holds {what} that no {MANIFEST} there lists (not a map, or a damaged one): "
             "remove it or choose a new or empty directory"
         )
-    for name in [MANIFEST, *sorted(listed)]:  # the manifest first: a half-cleared set is no longer a set
-        (directory / name).unlink(missing_ok=True)
+    return [MANIFEST, *sorted(listed)] if entries else []
+
+
+def clear_file_set(directory: Path | str) -> None:
+    """Remove the file set ``directory`` holds (:func:`replaceable_files`; refused if it holds anything
+    else), the manifest first: a half-cleared set is no longer a set."""
+    for name in replaceable_files(directory):
+        (Path(directory) / name).unlink(missing_ok=True)
 
 
 def record_source(directory: Path | str, source: dict[str, str]) -> None:

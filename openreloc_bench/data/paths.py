@@ -120,25 +120,52 @@ def directory_lock(directory: Path, what: str, in_directory: bool = True) -> Ite
 
 
 @contextmanager
+def staged(target: Path) -> Iterator[Path]:
+    """A new hidden sibling folder of ``target`` to write into, removed if the block fails; one that a
+    killed run left (its pid in the name is gone) is removed first."""
+    target = Path(target)
+    prefix = f".{target.name}.partial-"
+    for old in target.parent.glob(prefix + "*"):
+        pid = old.name[len(prefix) :]
+        if pid.isdigit() and not _alive(int(pid)):
+            shutil.rmtree(old, ignore_errors=True)
+    stage = target.parent / f"{prefix}{os.getpid()}"
+    shutil.rmtree(stage, ignore_errors=True)
+    stage.mkdir(parents=True)
+    try:
+        yield stage
+    except BaseException:
+        shutil.rmtree(stage, ignore_errors=True)
+        raise
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+@contextmanager
 def new_directory(out: Path, what: str, not_empty: str) -> Iterator[Path]:
-    """Write the new directory ``out`` (absent or empty) through a hidden sibling, which takes its place
-    only once complete: a failed or interrupted run leaves no partial ``out``. ``out`` is locked
-    meanwhile, so of two runs into it the second fails at once; ``not_empty`` is the one-line error for
-    an ``out`` that holds files."""
+    """Write the new directory ``out`` (absent or empty) through a hidden sibling (:func:`staged`), which
+    takes its place only once complete: a failed or interrupted run leaves no partial ``out``. ``out``
+    is locked meanwhile, so of two runs into it the second fails at once; ``not_empty`` is the one-line
+    error for an ``out`` that holds files."""
     out = Path(out)
     created = not out.exists()
-    with directory_lock(out, what, in_directory=False):
-        if any(out.iterdir()):
-            raise ConfigError(not_empty)
-        stage = out.parent / f".{out.name}.partial-{os.getpid()}"
-        shutil.rmtree(stage, ignore_errors=True)
-        stage.mkdir()
-        try:
-            yield stage
-            os.rmdir(out)  # still empty: nobody else writes here while we hold the lock
-            os.rename(stage, out)
-        except BaseException:
-            shutil.rmtree(stage, ignore_errors=True)
-            if created and out.is_dir() and not any(out.iterdir()):
-                out.rmdir()
-            raise
+    try:
+        with directory_lock(out, what, in_directory=False):
+            if any(out.iterdir()):
+                raise ConfigError(not_empty)
+            with staged(out) as stage:
+                yield stage
+                os.rmdir(out)  # still empty: nobody else writes here while we hold the lock
+                os.rename(stage, out)
+    except BaseException:
+        if created and out.is_dir() and not any(out.iterdir()):
+            out.rmdir()
+        raise

@@ -3,6 +3,8 @@ never inside them, and a map directory holds one map (a previous one is replaced
 
 from __future__ import annotations
 
+import contextlib
+
 import pandas as pd
 import pytest
 
@@ -171,3 +173,21 @@ def test_score_files_a_submission_under_the_track_its_header_records(world: Worl
     (sub / "sA.txt").write_text("# method m, track oracle-mask, scene sA\nquery/000000 1 0 0 0 0 0 0\n")
     assert run(["score", str(sub), "--data", str(world.data), "--out", str(world.tmp / "s")], capsys)[0] == 0
     assert set(pd.read_csv(world.tmp / "s" / "tables" / "queries.csv")["track"]) == {"oracle-mask"}
+
+
+@pytest.mark.parametrize("failure", [KeyboardInterrupt, RuntimeError])
+def test_a_failed_map_build_keeps_the_previous_map(world: World, capsys, monkeypatch, failure) -> None:
+    from baselines.nearest_frame import NearestFrame
+
+    before = checksums(world.map_dir)
+
+    def failing(self, mapping, map_dir) -> None:
+        (map_dir / "thumbs.npz").write_bytes(b"half")
+        raise failure("stopped")
+
+    monkeypatch.setattr(NearestFrame, "build_map", failing)
+    argv = ["map", "--method", "nearest-frame", "--scene", str(world.scene), "--out", str(world.map_dir)]
+    with pytest.raises(RuntimeError) if failure is RuntimeError else contextlib.nullcontext():
+        assert run(argv, capsys)[0] == 130
+    assert checksums(world.map_dir) == before
+    assert [p.name for p in world.map_dir.parent.iterdir() if ".partial-" in p.name] == []

@@ -11,7 +11,7 @@ import os
 from collections.abc import Callable
 from typing import Any, TypeVar
 
-from openreloc_bench.errors import exit_quietly_on_interrupt
+from openreloc_bench.errors import OpenRelocError, exit_quietly_on_interrupt
 from openreloc_bench.harness.executors import exit_with, mp_context
 from openreloc_bench.harness.score import Outcome
 
@@ -66,7 +66,10 @@ def _serve(conn: Any, open_queries: Opener, job: Any) -> None:
         return
     conn.send(("ready", load_s))
     while (i := conn.recv()) is not None:
-        conn.send(answer(i))
+        try:
+            conn.send(answer(i))
+        except OpenRelocError as e:  # the query's input cannot be read: the run's error, not the method's
+            conn.send(e)
 
 
 class QueryServer:
@@ -105,15 +108,20 @@ class QueryServer:
         self.load_s += value
 
     def ask(self, i: int, name: str) -> Outcome:
-        """The outcome of query ``i`` (named ``name``): the method's, or a failure when it hung or died."""
+        """The outcome of query ``i`` (named ``name``): the method's, or a failure when it hung or died.
+        A query whose input cannot be read raises the child's DataError (an error of the run)."""
         if self._proc is None:
             self._start()
         self._conn.send(i)
         if self._conn.poll(self.timeout_s):
             try:
-                return self._conn.recv()
+                got = self._conn.recv()
             except EOFError:
                 pass
+            else:
+                if isinstance(got, OpenRelocError):
+                    raise got
+                return got
             code = self._stop()
             return Outcome(name, None, float("nan"), f"worker died (exit code {code})")
         self._stop()

@@ -442,6 +442,20 @@ def test_a_truncated_image_is_a_counted_failure_not_a_traceback(world: World, ca
     assert code == 1 and "unreadable image" in out and "Traceback" not in err
 
 
+@pytest.mark.parametrize("timeout", ["300", "0"])  # the query in a worker process, or in the eval's own
+def test_an_unreadable_query_image_is_an_error_of_the_run_not_a_failure(world: World, capsys, timeout: str) -> None:
+    img = world.scene / "query" / "color" / "000001.png"
+    good = img.read_bytes()
+    img.write_bytes(good[:40])
+    code, out, err = run(eval_argv(world, "--timeout", timeout, "--resume"), capsys)
+    assert code == 1 and "Traceback" not in err, err
+    assert "000001.png: unreadable image" in out and "1 errors" in out
+    assert not (world.tmp / "res" / "runs" / "nearest-frame" / "mask-free" / "sA" / "query.done.json").exists()
+    img.write_bytes(good)
+    code, out, _ = run(eval_argv(world, "--timeout", timeout, "--resume"), capsys)
+    assert code == 0 and "3 of 3 localized" in out  # resumed: the job runs again, whole
+
+
 def test_the_battery_leaves_no_stray_files(world: World, capsys) -> None:
     shutil.rmtree(world.tmp / "res", ignore_errors=True)
     assert run(eval_argv(world), capsys)[0] == 0

@@ -211,7 +211,32 @@ def evaluate(cfg: EvalConfig) -> EvalReport:
     """
     map_jobs, query_jobs = plan(cfg)
     with paths.directory_lock(cfg.out, "openreloc-bench eval"):
+        refuse_pooling(cfg.out, query_jobs)
         return _evaluate(cfg, map_jobs, query_jobs)
+
+
+def refuse_pooling(out: Path, query_jobs: list[QueryJob]) -> None:
+    """ConfigError when ``out`` holds finished runs of a method variant and track that this run does not
+    redo (another scene or split) but made with other settings: the tables would pool both into one row,
+    with one config hash shown for them."""
+    planned = {j.marker for j in query_jobs}
+    wanted = {(j.run.label, j.track): j.provenance["config_hash"] for j in query_jobs}
+    for (label, track), config_hash in wanted.items():
+        for marker in sorted((out / "runs" / label / track).glob("*/*.done.json")):
+            if marker in planned:
+                continue  # redone (or resumed) by this run
+            try:
+                done = io.read_json(marker)
+            except DataError:
+                continue  # a damaged marker: the job does not count
+            other = done.get("config_hash") if isinstance(done, dict) else None
+            if other is not None and other != config_hash:
+                split = marker.name.removesuffix(".done.json")
+                raise ConfigError(
+                    f"{out} holds a run of '{label}' ({track}) on {marker.parent.name}/{split} made with other "
+                    f"settings (config {other}, this run's {config_hash}); its tables would pool them: "
+                    "choose another --out, or include that scene and split to redo it"
+                )
 
 
 def _evaluate(cfg: EvalConfig, map_jobs: list[MapJob], query_jobs: list[QueryJob]) -> EvalReport:

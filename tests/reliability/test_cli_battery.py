@@ -369,6 +369,18 @@ def test_resume_recomputes_jobs_run_with_other_settings_or_scenes(world: World, 
     assert json.loads(marker.read_text())["spec_hash"] == "regenerated"
 
 
+def test_runs_with_other_settings_are_never_pooled_into_one_row(world: World, capsys) -> None:
+    assert run(eval_argv(world, scenes="sA"), capsys)[0] == 0
+    cfg = write_input(world, "cfg.yaml", b"thumb_size: 8\n")
+    other = ["--method-config", f"nearest-frame={cfg}"]
+    for extra in ([], ["--resume"]):
+        code, _, err = run(eval_argv(world, *other, *extra, scenes="sB"), capsys)
+        one_line_error(
+            code, err, "eval", "holds a run of 'nearest-frame' (mask-free) on sA/query made with other settings"
+        )
+    assert run(eval_argv(world, *other, "--resume", scenes="sA,sB"), capsys)[0] == 0  # redoing sA pools nothing
+
+
 def test_an_incomplete_scene_is_refused_by_every_command(world: World, capsys) -> None:
     (world.scene / "query" / "pose" / "000002.txt").unlink()  # as a killed generator leaves a scene
     info = json.loads((world.scene / "scene.json").read_text())

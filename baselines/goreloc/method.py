@@ -39,7 +39,7 @@ from openreloc_bench import config as cfglib
 from openreloc_bench.data.types import SceneSequence
 from openreloc_bench.errors import DataError
 from openreloc_bench.methods import Failure, PoseEstimate, QueryFrame
-from openreloc_bench.vision.base import create_encoder, create_segmenter, encoder_fingerprint
+from openreloc_bench.vision.base import check_backend, create_encoder, create_segmenter, encoder_fingerprint
 
 
 @dataclass
@@ -88,6 +88,8 @@ class GORelocConfig:
             at_least_one=("frame_neighbours", "candidates"),
             non_negative=("min_cosine", "seed"),
         )
+        for kind in ("encoder", "segmenter"):
+            check_backend(kind, getattr(self, kind), getattr(self, f"{kind}_options"), partial=True)
         if self.min_frame_nodes < 3 or self.min_candidate_nodes < 3:
             raise ValueError("min_frame_nodes and min_candidate_nodes must be >= 3 (P3P needs three objects)")
 

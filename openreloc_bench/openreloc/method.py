@@ -76,6 +76,7 @@ from openreloc_bench.openreloc.verify import ObjectEvidence, VerifyConfig, extre
 from openreloc_bench.vision.base import (
     ImageTextEncoder,
     ObjectMask,
+    check_backend,
     create_describer,
     create_encoder,
     create_segmenter,
@@ -152,6 +153,8 @@ class OpenReLocConfig:
             non_negative=("min_objects", "min_matches", "seed"),
             share=("min_mask_frac",),
         )
+        for kind in ("encoder", "describer", "segmenter"):
+            check_backend(kind, getattr(self, kind), getattr(self, f"{kind}_options"), partial=True)
 
 
 class OpenReLoc:

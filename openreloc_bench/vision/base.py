@@ -140,21 +140,34 @@ register_describer = _registrar(_DESCRIBERS)
 register_segmenter = _registrar(_SEGMENTERS)
 
 
-def _create(kind: str, table: dict[str, Callable[..., Any]], name: str, kwargs: dict[str, Any]) -> Any:
+_TABLES = {"encoder": _ENCODERS, "describer": _DESCRIBERS, "segmenter": _SEGMENTERS}
+
+
+def check_backend(kind: str, name: str, options: dict[str, Any], partial: bool = False) -> Callable[..., Any]:
+    """The factory of the ``kind`` backend ``name`` (encoder, describer or segmenter), once its options
+    are known to fit it (``partial``: the caller adds others, such as a describer's encoder): ConfigError
+    otherwise. Configs call it when they are made, so that a mistyped name fails at once, not after a
+    map's worth of work."""
     from openreloc_bench import vision  # noqa: F401  (imports the backends so they register)
 
+    table = _TABLES[kind]
     if name not in table:
         raise ConfigError(f"unknown {kind} '{name}' (available: {', '.join(sorted(table)) or 'none'})")
     factory = table[name]
     try:  # options come from the user's config (``encoder_options`` ...): a wrong name is theirs to fix
-        inspect.signature(factory).bind(**kwargs)
+        signature = inspect.signature(factory)
+        signature.bind_partial(**options) if partial else signature.bind(**options)
     except TypeError as e:
         raise ConfigError(f"{kind} '{name}': {e}") from None
-    return factory(**kwargs)
+    return factory
+
+
+def _create(kind: str, name: str, kwargs: dict[str, Any]) -> Any:
+    return check_backend(kind, name, kwargs)(**kwargs)
 
 
 def create_encoder(name: str, **kwargs: Any) -> ImageTextEncoder:
-    return _create("encoder", _ENCODERS, name, kwargs)
+    return _create("encoder", name, kwargs)
 
 
 def encoder_fingerprint(name: str, options: dict[str, Any]) -> str:
@@ -176,11 +189,11 @@ def _fingerprint(table: dict[str, Callable[..., Any]], name: str, options: dict[
 
 
 def create_describer(name: str, **kwargs: Any) -> Describer:
-    return _create("describer", _DESCRIBERS, name, kwargs)
+    return _create("describer", name, kwargs)
 
 
 def create_segmenter(name: str, **kwargs: Any) -> Segmenter:
-    return _create("segmenter", _SEGMENTERS, name, kwargs)
+    return _create("segmenter", name, kwargs)
 
 
 def l2_normalize(x: np.ndarray, eps: float = 1e-12) -> np.ndarray:

@@ -251,6 +251,16 @@ MISTAKES: dict[str, tuple[str, Callable[[World], list[str]], str]] = {
         "overlaps the input",
     ),
     "preview: --frames 0": ("preview", lambda w: ["preview", str(w.scene), "--frames", "0"], "--frames must be in [1, 32]"),
+    "map: an unknown segmenter": (
+        "map",
+        lambda w: ["map", "--method", "openreloc", "--scene", str(w.scene), "--out", str(w.tmp / "m"), "--set", "segmenter=bogus"],
+        "unknown segmenter 'bogus'",
+    ),
+    "localize: an option the encoder does not take": (
+        "localize",
+        lambda w: ["localize", "--method", "goreloc", "--map", str(w.map_dir), "--scene", str(w.scene), "--out", str(w.tmp / "p.txt"), "--set", "encoder_options={size: 3}"],
+        "encoder 'offline': got an unexpected keyword argument 'size'",
+    ),
     "agent: a negative seed": ("agent", lambda w: ["agent", "ActiveReloc-v0", "--seed", "-1"], "--seed must be at least 0"),
     "agent: --out under a regular file": (
         "agent",

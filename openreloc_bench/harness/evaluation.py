@@ -13,9 +13,9 @@ from pathlib import Path
 
 import pandas as pd
 
-from openreloc_bench.data import runs
+from openreloc_bench.data import paths, runs
 from openreloc_bench.harness import runner, tables
-from openreloc_bench.harness.suites import ensure_suite_scenes
+from openreloc_bench.harness.suites import ensure_suite_scenes, suite_scene_names
 from openreloc_bench.methods import uses_masks
 
 
@@ -34,7 +34,8 @@ def main(cfg: runner.EvalConfig, suite: Path | None = None, say: Callable[[str],
     when the run ends). ``suite``: a suite YAML whose scenes to evaluate instead of ``cfg.scenes``, its
     missing ones generated under ``cfg.data`` once the methods and their settings are known to be good."""
     runner.seeded_runs(cfg.runs, cfg.seeds)  # unknown methods and bad settings fail here, before scenes are generated
-    if suite is not None:
+    if suite is not None:  # the results folder must not hold the scenes about to be generated
+        paths.check_output(cfg.out, [cfg.data / name for name in suite_scene_names(suite)], "results folder")
         cfg = replace(cfg, scenes=ensure_suite_scenes(suite, cfg.data))
     report = runner.evaluate(cfg)
     if report.jobs_stale:

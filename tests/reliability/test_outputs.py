@@ -63,9 +63,13 @@ def test_an_interrupted_map_build_leaves_nothing_to_mistake_for_a_map(world: Wor
 def test_an_eval_that_cannot_run_generates_no_scene_first(world: World, capsys) -> None:
     suite = world.inputs / "suite.yaml"
     suite.write_text("scenes:\n  - {name: s1, seed: 3, width: 32, height: 24, n_query: 2, max_mapping_frames: 2}\n")
-    for methods, config in (("nope", []), ("nearest-frame", ["--method-config", f"nearest-frame={suite}"])):
+    for methods, config, out in (
+        ("nope", [], "res"),
+        ("nearest-frame", ["--method-config", f"nearest-frame={suite}"], "res"),
+        ("nearest-frame", [], "gen/.."),  # --data inside --out
+    ):
         argv = ["eval", "--suite", str(suite), "--methods", methods, "--data", str(world.tmp / "gen"), *config]
-        code, _, err = run([*argv, "--out", str(world.tmp / "res")], capsys)
+        code, _, err = run([*argv, "--out", str(world.tmp / out)], capsys)
         assert code == 2 and "Traceback" not in err, err
         assert not (world.tmp / "gen" / "s1").exists()
 

@@ -1,5 +1,7 @@
 """The method contract shared by OpenReLoc, the baselines and third-party plugins, plus the registry.
 
+Callers ask a method through :func:`localize_safely`, which sorts its answer into a pose or a failure.
+
 A method is a class satisfying :class:`Relocalizer`. It is found by name through the entry-point
 group ``openreloc_bench.methods`` (declared in a package's ``pyproject.toml``), so an outside package
 adds a method without touching this repository; :func:`register` exists for methods defined in
@@ -125,9 +127,9 @@ def localize_safely(method: Relocalizer, query: QueryFrame) -> Answer:
         return Answer(query.name, None, seconds, f"invalid return type {type(res).__name__}")
     try:
         T = np.asarray(res.T_wc, dtype=np.float64)
-    except (TypeError, ValueError):
-        T = np.full(0, np.nan)
-    if T.shape != (4, 4) or not geometry.is_rigid(T):
+    except (TypeError, ValueError):  # not numbers at all
+        T = None
+    if T is None or T.shape != (4, 4) or not geometry.is_rigid(T):
         return Answer(query.name, None, seconds, "invalid pose (not a finite rigid 4x4 transform)", res.diagnostics)
     return Answer(query.name, T, seconds, "", res.diagnostics)
 

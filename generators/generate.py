@@ -29,7 +29,8 @@ from generators.variants import LIGHT_SPLITS, Lighting, light_variants, sample_d
 from openreloc_bench import config, geometry
 from openreloc_bench.data import io, paths
 from openreloc_bench.data.scene import DATA_VERSION, SceneWriter, foreign_files, frame_id
-from openreloc_bench.errors import ConfigError, DataError, exit_quietly_on_interrupt
+from openreloc_bench.errors import ConfigError, DataError
+from openreloc_bench.processes import pool_worker, workers_stopped_on_interrupt
 
 log = logging.getLogger(__name__)
 
@@ -253,11 +254,12 @@ def generate_scenes(
     done: dict[str, Path] = {}
     ctx = mp.get_context("spawn")
     with ProcessPoolExecutor(
-        max_workers=max(1, workers), mp_context=ctx, initializer=exit_quietly_on_interrupt
+        max_workers=max(1, workers), mp_context=ctx, initializer=pool_worker, initargs=(os.getpid(),)
     ) as pool:
         futures = {pool.submit(_worker, config.to_dict(s), str(out_dir), resume): s.name for s in specs}
-        for fut in tqdm(as_completed(futures), total=len(futures), desc=desc, unit="scene"):
-            done[futures[fut]] = Path(fut.result())
+        with workers_stopped_on_interrupt(pool):
+            for fut in tqdm(as_completed(futures), total=len(futures), desc=desc, unit="scene"):
+                done[futures[fut]] = Path(fut.result())
     return [done[s.name] for s in specs]
 
 

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import os
-import signal
 from pathlib import Path
 
 
@@ -26,13 +24,3 @@ class DataError(OpenRelocError):
 
 class ConfigError(OpenRelocError):
     """A config or spec value is unknown or out of range; the message names the key."""
-
-
-def exit_quietly_on_interrupt() -> None:
-    """In a child process: end silently on Ctrl-C, which reaches the whole process group.
-
-    The parent reports the interruption in one line; without this every worker, map builder and query
-    server printed its own ``KeyboardInterrupt`` traceback (~40 lines) under it. What a child left
-    half-written is a temp file that the next (resumed) run removes.
-    """
-    signal.signal(signal.SIGINT, lambda signum, frame: os._exit(128 + signum))

@@ -11,13 +11,12 @@ from __future__ import annotations
 
 import multiprocessing as mp
 import os
-import threading
-import time
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from typing import Any, Protocol, TypeVar
 
-from openreloc_bench.errors import ConfigError, exit_quietly_on_interrupt
+from openreloc_bench.errors import ConfigError
+from openreloc_bench.processes import pool_worker, workers_stopped_on_interrupt
 
 J = TypeVar("J")
 EXECUTORS = ("local", "ray")
@@ -36,29 +35,6 @@ def mp_context() -> mp.context.BaseContext:
     ctx = mp.get_context("forkserver")
     ctx.set_forkserver_preload(["openreloc_bench.harness.jobs", "torch", "sentence_transformers"])
     return ctx
-
-
-def exit_with(parent_pid: int, poll_s: float = 1.0) -> None:
-    """Pool-worker initializer: exit as soon as process ``parent_pid`` (the one running the pool) is gone,
-    and quietly on Ctrl-C (:func:`~openreloc_bench.errors.exit_quietly_on_interrupt`).
-
-    Killing an eval (SIGTERM, SIGKILL) ends only its main process; the workers are children of the
-    fork server, not of it, so without this they finish their jobs and write results for a run that
-    was stopped (orphans were seen still running long after, next to a new run on the same folder).
-    """
-    exit_quietly_on_interrupt()
-
-    def watch() -> None:
-        while True:
-            time.sleep(poll_s)
-            try:
-                os.kill(parent_pid, 0)
-            except ProcessLookupError:
-                os._exit(1)
-            except PermissionError:  # the pid exists (reused by another user's process): keep polling
-                pass
-
-    threading.Thread(target=watch, name="exit-with-parent", daemon=True).start()
 
 
 class Executor(Protocol):
@@ -85,12 +61,13 @@ class LocalExecutor:
         with ProcessPoolExecutor(
             max_workers=min(self.workers, len(jobs)),
             mp_context=mp_context(),
-            initializer=exit_with,
+            initializer=pool_worker,
             initargs=(os.getpid(),),
         ) as pool:
             futures = {pool.submit(fn, job): job for job in jobs}
-            for fut in as_completed(futures):
-                yield futures[fut], fut.result()
+            with workers_stopped_on_interrupt(pool):
+                for fut in as_completed(futures):
+                    yield futures[fut], fut.result()
 
 
 class RayExecutor:

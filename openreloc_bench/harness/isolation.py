@@ -11,9 +11,10 @@ import os
 from collections.abc import Callable
 from typing import Any, TypeVar
 
-from openreloc_bench.errors import OpenRelocError, exit_quietly_on_interrupt
-from openreloc_bench.harness.executors import exit_with, mp_context
+from openreloc_bench.errors import OpenRelocError
+from openreloc_bench.harness.executors import mp_context
 from openreloc_bench.harness.score import Outcome
+from openreloc_bench.processes import exit_quietly_on_interrupt, exit_with
 
 Job = TypeVar("Job")
 
@@ -46,6 +47,7 @@ def build_map_in_child(build: Callable[[Job], dict[str, Any]], job: Job, timeout
 
 
 def _build_in_child(conn: Any, build: Callable[[Job], dict[str, Any]], job: Job, parent_pid: int) -> None:
+    exit_quietly_on_interrupt()
     exit_with(parent_pid)
     conn.send(build(job))
     conn.close()

@@ -114,11 +114,16 @@ def test_help_gives_every_default(name: str) -> None:
             assert "(default: " in shown, f"{name} {action.option_strings[0]}: no default in its help: {shown}"
 
 
-@pytest.mark.parametrize("name", ["eval", "localize", "map", "score", "diagnose"])
+@pytest.mark.parametrize("name", ["eval", "localize", "map", "diagnose"])
 def test_track_defaults_to_the_one_default_track_and_help_says_so(name: str) -> None:
     parser = commands()[name]
     assert parser.get_default("track") == DEFAULT_TRACK == "predicted"
     assert f"(default: {DEFAULT_TRACK})" in " ".join(parser.format_help().split())
+
+
+def test_score_takes_the_track_from_the_pose_files_else_the_default_track() -> None:
+    help_text = " ".join(commands()["score"].format_help().split())
+    assert f"(default: the track the pose files' headers record, else {DEFAULT_TRACK})" in help_text
 
 
 def test_the_library_defaults_to_the_same_track() -> None:

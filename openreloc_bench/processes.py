@@ -1,0 +1,65 @@
+"""How the child processes of a run end: with their parent, and never with a traceback of their own.
+
+Ctrl-C sends SIGINT to every process of the terminal's process group. The parent reports the
+interruption in one line; without these, every worker, map builder and query server printed its own
+``KeyboardInterrupt`` traceback (~40 lines) under it.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import threading
+import time
+from collections.abc import Iterator
+from concurrent.futures import ProcessPoolExecutor
+from contextlib import contextmanager
+
+
+def exit_quietly_on_interrupt() -> None:
+    """In a child whose parent waits on it alone (a map builder, a query server): end silently on Ctrl-C.
+    What it left half-written is a temp file that the next (resumed) run removes."""
+    signal.signal(signal.SIGINT, lambda signum, frame: os._exit(128 + signum))
+
+
+def pool_worker(parent_pid: int) -> None:
+    """Initializer of a process pool's workers: ignore Ctrl-C, which the parent handles before stopping
+    them (:func:`workers_stopped_on_interrupt`; a worker dying of it broke the pool, at times before the
+    parent's own interrupt was raised), and exit with the parent (:func:`exit_with`)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    exit_with(parent_pid)
+
+
+@contextmanager
+def workers_stopped_on_interrupt(pool: ProcessPoolExecutor) -> Iterator[None]:
+    """Around the wait on a pool of :func:`pool_worker` processes: on Ctrl-C, or when the generator
+    yielding the pool's results is closed (Ctrl-C struck its consumer between two results), stop the
+    workers in their jobs (``ProcessPoolExecutor`` has no public way before Python 3.14) instead of
+    waiting for them, then let it propagate."""
+    try:
+        yield
+    except (KeyboardInterrupt, GeneratorExit):
+        for proc in list(getattr(pool, "_processes", {}).values()):
+            proc.kill()
+        raise
+
+
+def exit_with(parent_pid: int, poll_s: float = 1.0) -> None:
+    """In a child process: exit as soon as process ``parent_pid`` (the one that started it) is gone.
+
+    Killing an eval (SIGTERM, SIGKILL) ends only its main process; the workers are children of the
+    fork server, not of it, so without this they finish their jobs and write results for a run that
+    was stopped (orphans were seen still running long after, next to a new run on the same folder).
+    """
+
+    def watch() -> None:
+        while True:
+            time.sleep(poll_s)
+            try:
+                os.kill(parent_pid, 0)
+            except ProcessLookupError:
+                os._exit(1)
+            except PermissionError:  # the pid exists (reused by another user's process): keep polling
+                pass
+
+    threading.Thread(target=watch, name="exit-with-parent", daemon=True).start()

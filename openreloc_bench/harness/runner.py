@@ -1,7 +1,7 @@
-"""The evaluation runner: plans an evaluation and runs it, maps built once per (map key, scene) and
-every query localized and scored.
+"""The evaluation runner: lists an evaluation's jobs and runs them, maps built once per (map key,
+scene) and every query localized and scored.
 
-:func:`plan` checks everything up front (methods, configs, scenes, splits, track) and lists the jobs
+:func:`list_jobs` checks everything up front (methods, configs, scenes, splits, track) and lists the jobs
 (:mod:`~openreloc_bench.harness.jobs`); :func:`evaluate` runs the map jobs, then the query jobs, on an
 executor (:mod:`~openreloc_bench.harness.executors`), with one progress bar for each. What the jobs
 wrote is read back by :mod:`openreloc_bench.data.runs`.
@@ -95,7 +95,7 @@ class EvalReport:
     """Of ``wall_s``, the time spent building maps."""
 
 
-def plan(cfg: EvalConfig) -> tuple[list[MapJob], list[QueryJob]]:
+def list_jobs(cfg: EvalConfig) -> tuple[list[MapJob], list[QueryJob]]:
     """Validate everything up front (methods, configs, scenes, splits, track) and list the jobs."""
     if cfg.track not in TRACKS:
         raise ConfigError(f"unknown track '{cfg.track}' (known: {', '.join(TRACKS)})")
@@ -209,7 +209,7 @@ def evaluate(cfg: EvalConfig) -> EvalReport:
 
     The results folder is locked for the whole run: a second evaluation on it fails at once.
     """
-    map_jobs, query_jobs = plan(cfg)
+    map_jobs, query_jobs = list_jobs(cfg)
     with paths.directory_lock(cfg.out, "openreloc-bench eval"):
         refuse_pooling(cfg.out, query_jobs)
         return _evaluate(cfg, map_jobs, query_jobs)

@@ -141,3 +141,57 @@ def test_a_mapping_file_needs_text_keys(tmp_path: Path):
         load_mapping(tmp_path / "x.yaml")
     (tmp_path / "y.yaml").write_text("")
     assert load_mapping(tmp_path / "y.yaml") == {}
+
+
+def _config_classes() -> list[type]:
+    """Every dataclass of the project that a user's YAML or ``--set`` fills (``from_dict`` with no keys
+    builds it): method, scene, environment and campaign configs and their sections."""
+    import dataclasses
+    import importlib
+    import inspect
+    import pkgutil
+
+    import baselines
+    import generators
+    import openreloc_bench
+
+    found = {}
+    for package in (openreloc_bench, generators, baselines):
+        for info in pkgutil.walk_packages(package.__path__, package.__name__ + "."):
+            module = importlib.import_module(info.name)
+            for _, cls in inspect.getmembers(module, dataclasses.is_dataclass):
+                if isinstance(cls, type) and cls.__module__ == info.name:
+                    try:
+                        from_dict(cls, {})
+                    except Exception:  # noqa: BLE001 -- required fields: not filled from a user's file
+                        continue
+                    found[f"{cls.__module__}.{cls.__qualname__}"] = cls
+    return [found[k] for k in sorted(found)]
+
+
+def _float_fields(cls: type, prefix: tuple[str, ...] = ()) -> list[tuple[str, ...]]:
+    import dataclasses
+    import typing
+
+    hints = typing.get_type_hints(cls)
+    out = []
+    for f in dataclasses.fields(cls):
+        tp = hints[f.name]
+        if tp is float and not f.metadata.get("allow_nonfinite"):
+            out.append((*prefix, f.name))
+        elif dataclasses.is_dataclass(tp):
+            out += _float_fields(tp, (*prefix, f.name))
+    return out
+
+
+@pytest.mark.parametrize("cls", _config_classes(), ids=lambda c: f"{c.__module__}.{c.__qualname__}")
+def test_every_float_field_refuses_nan_and_infinity(cls: type) -> None:
+    for path in _float_fields(cls):
+        for bad in (float("nan"), float("inf"), float("-inf")):
+            data: dict = {}
+            node = data
+            for key in path[:-1]:
+                node = node.setdefault(key, {})
+            node[path[-1]] = bad
+            with pytest.raises(ConfigError, match="finite"):
+                from_dict(cls, data)

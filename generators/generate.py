@@ -253,13 +253,15 @@ def generate_scenes(
     """
     done: dict[str, Path] = {}
     ctx = mp.get_context("spawn")
-    with ProcessPoolExecutor(
-        max_workers=max(1, workers), mp_context=ctx, initializer=pool_worker, initargs=(os.getpid(),)
-    ) as pool:
+    with (
+        ProcessPoolExecutor(
+            max_workers=max(1, workers), mp_context=ctx, initializer=pool_worker, initargs=(os.getpid(),)
+        ) as pool,
+        workers_stopped_on_interrupt(pool),
+    ):
         futures = {pool.submit(_worker, config.to_dict(s), str(out_dir), resume): s.name for s in specs}
-        with workers_stopped_on_interrupt(pool):
-            for fut in tqdm(as_completed(futures), total=len(futures), desc=desc, unit="scene"):
-                done[futures[fut]] = Path(fut.result())
+        for fut in tqdm(as_completed(futures), total=len(futures), desc=desc, unit="scene"):
+            done[futures[fut]] = Path(fut.result())
     return [done[s.name] for s in specs]
 
 

@@ -13,6 +13,7 @@ import threading
 import time
 from collections.abc import Iterator
 from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from contextlib import contextmanager
 
 
@@ -23,25 +24,44 @@ def exit_quietly_on_interrupt() -> None:
 
 
 def pool_worker(parent_pid: int) -> None:
-    """Initializer of a process pool's workers: ignore Ctrl-C, which the parent handles before stopping
-    them (:func:`workers_stopped_on_interrupt`; a worker dying of it broke the pool, at times before the
-    parent's own interrupt was raised), and exit with the parent (:func:`exit_with`)."""
+    """Initializer of a process pool's workers: ignore Ctrl-C, which the parent handles by stopping them
+    (:func:`workers_stopped_on_interrupt`), and exit with the parent (:func:`exit_with`)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     exit_with(parent_pid)
 
 
 @contextmanager
 def workers_stopped_on_interrupt(pool: ProcessPoolExecutor) -> Iterator[None]:
-    """Around the wait on a pool of :func:`pool_worker` processes: on Ctrl-C, or when the generator
-    yielding the pool's results is closed (Ctrl-C struck its consumer between two results), stop the
-    workers in their jobs (``ProcessPoolExecutor`` has no public way before Python 3.14) instead of
-    waiting for them, then let it propagate."""
-    try:
+    """Around the wait on a pool of :func:`pool_worker` processes: Ctrl-C stops the workers in their jobs
+    and is raised as ``KeyboardInterrupt`` once the pool has seen them go.
+
+    The handler only kills (``ProcessPoolExecutor`` has no public way to stop a job before Python 3.14):
+    an exception raised inside the pool's own waiting can leave a future's lock held, and the shutdown
+    then hangs (seen as a flaky test); a worker dying of the signal itself broke the pool, at times
+    before the parent's own interrupt was raised. Outside the main thread, signals are not ours to take.
+    """
+    if threading.current_thread() is not threading.main_thread():
         yield
-    except (KeyboardInterrupt, GeneratorExit):
+        return
+    interrupted = False
+
+    def stop(signum: int, frame: object) -> None:
+        nonlocal interrupted
+        interrupted = True
         for proc in list(getattr(pool, "_processes", {}).values()):
             proc.kill()
+
+    previous = signal.signal(signal.SIGINT, stop)
+    try:
+        yield
+    except BrokenProcessPool:
+        if interrupted:
+            raise KeyboardInterrupt from None
         raise
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    if interrupted:
+        raise KeyboardInterrupt
 
 
 def exit_with(parent_pid: int, poll_s: float = 1.0) -> None:

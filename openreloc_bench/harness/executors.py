@@ -58,16 +58,18 @@ class LocalExecutor:
     def map(self, fn: Callable[[J], Any], jobs: Sequence[J]) -> Iterator[tuple[J, Any]]:
         if not jobs:
             return
-        with ProcessPoolExecutor(
-            max_workers=min(self.workers, len(jobs)),
-            mp_context=mp_context(),
-            initializer=pool_worker,
-            initargs=(os.getpid(),),
-        ) as pool:
+        with (
+            ProcessPoolExecutor(
+                max_workers=min(self.workers, len(jobs)),
+                mp_context=mp_context(),
+                initializer=pool_worker,
+                initargs=(os.getpid(),),
+            ) as pool,
+            workers_stopped_on_interrupt(pool),
+        ):
             futures = {pool.submit(fn, job): job for job in jobs}
-            with workers_stopped_on_interrupt(pool):
-                for fut in as_completed(futures):
-                    yield futures[fut], fut.result()
+            for fut in as_completed(futures):
+                yield futures[fut], fut.result()
 
 
 class RayExecutor:

@@ -121,14 +121,9 @@ def generate_scene(spec: SceneSpec, out_dir: Path | str, resume: bool = False, p
     if target.exists():
         check_replaceable(target, spec, resume)
         if not resume:
-            stage = target.parent / f".{spec.name}.regenerating"
-            shutil.rmtree(stage, ignore_errors=True)  # left by a killed run; the caller holds the folder's lock
-            try:
+            with paths.staged(target) as stage:
                 write_scene(spec, stage, resume=False, progress=progress)
-            except BaseException:
-                shutil.rmtree(stage, ignore_errors=True)
-                raise
-            replace_directory(stage, target)
+                replace_directory(stage, target)
             return target
         io.remove_stray_temps(target)
     return write_scene(spec, target, resume, progress)

@@ -34,18 +34,21 @@ def _file_mode() -> int:
     return 0o666 & ~_UMASK
 
 
-def _writer_alive(temp: Path) -> bool:
-    """Whether the process that created an atomic-write temp file (pid in its name) is still running."""
-    pid = temp.name[: -len(_TEMP_SUFFIX)].rpartition(".")[2].partition("-")[0]
-    if not pid.isdigit():
-        return False
+def process_alive(pid: int) -> bool:
+    """Whether process ``pid`` is running (one of another user's counts as running)."""
     try:
-        os.kill(int(pid), 0)
+        os.kill(pid, 0)
     except ProcessLookupError:
         return False
     except PermissionError:
         return True
     return True
+
+
+def _writer_alive(temp: Path) -> bool:
+    """Whether the process that created an atomic-write temp file (pid in its name) is still running."""
+    pid = temp.name[: -len(_TEMP_SUFFIX)].rpartition(".")[2].partition("-")[0]
+    return pid.isdigit() and process_alive(int(pid))
 
 
 def remove_stray_temps(root: Path | str) -> None:

@@ -15,6 +15,7 @@ from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
+from openreloc_bench.data import io
 from openreloc_bench.errors import ConfigError
 
 LOCK_NAME = ".openreloc-bench.lock"
@@ -127,7 +128,7 @@ def staged(target: Path) -> Iterator[Path]:
     prefix = f".{target.name}.partial-"
     for old in target.parent.glob(prefix + "*"):
         pid = old.name[len(prefix) :]
-        if pid.isdigit() and not _alive(int(pid)):
+        if pid.isdigit() and not io.process_alive(int(pid)):
             shutil.rmtree(old, ignore_errors=True)
     stage = target.parent / f"{prefix}{os.getpid()}"
     shutil.rmtree(stage, ignore_errors=True)
@@ -137,16 +138,6 @@ def staged(target: Path) -> Iterator[Path]:
     except BaseException:
         shutil.rmtree(stage, ignore_errors=True)
         raise
-
-
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
 
 
 @contextmanager

@@ -267,28 +267,13 @@ def _query_traces(
     returned = [n for n in names if n in estimates]
     missed = [n for n in names if n not in estimates]
     traces = []
-    if returned:
-        traces += _cameras(
-            np.stack([true_poses[n] for n in returned]),
-            m.K,
-            size,
-            0.12,
-            f"true cameras ({len(returned)} returned a pose)",
-            TRUE_COLOR,
-            "true",
-            [f"{n} (true)" for n in returned],
-        )
-    if missed:
-        traces += _cameras(
-            np.stack([true_poses[n] for n in missed]),
-            m.K,
-            size,
-            0.12,
-            f"no pose returned ({len(missed)}, true cameras)",
-            MISSED_COLOR,
-            "missed",
-            [f"{n}: no pose returned" for n in missed],
-        )
+    for group, label, color, key, hover in (
+        (returned, f"true cameras ({len(returned)} returned a pose)", TRUE_COLOR, "true", "{} (true)"),
+        (missed, f"no pose returned ({len(missed)}, true cameras)", MISSED_COLOR, "missed", "{}: no pose returned"),
+    ):
+        if group:
+            T = np.stack([true_poses[n] for n in group])
+            traces += _cameras(T, m.K, size, 0.12, label, color, key, [hover.format(n) for n in group])
     for within in (True, False):
         group = [n for n in returned if (errors[n][0] < RECALL_RADIUS_M) == within]
         if not group:

@@ -47,21 +47,31 @@ def dir_bytes(path: Path) -> int:
     return sum(p.stat().st_size for p in Path(path).rglob("*") if p.is_file() and not p.is_symlink())
 
 
+CODE_PATHS = ("openreloc_bench", "generators", "baselines", "scenes", "pyproject.toml")
+"""The files that decide a result's numbers: the package, the generators, the baselines, the suites and
+the dependencies."""
+DRAWING_PATHS = ("openreloc_bench/harness/leaderboard", "openreloc_bench/harness/browser.py")
+"""Of :data:`CODE_PATHS`, what only draws boards from finished rows: changing it changes no number."""
+
+
+def _git(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(["git", *args], cwd=REPO_ROOT, capture_output=True, text=True, timeout=10)
+
+
 @lru_cache(maxsize=1)
 def git_commit() -> str:
-    """The project's commit (``git rev-parse HEAD``), with ``-dirty`` if tracked files changed; "unknown" outside git."""
+    """The code version results are recorded under: the last commit that changed :data:`CODE_PATHS` (less
+    :data:`DRAWING_PATHS`), with ``-dirty`` if tracked files there have uncommitted changes; "unknown"
+    outside git. A commit of results, docs or tests keeps it, so a run that spans such commits (a campaign
+    over several sittings, committing its boards as they finish) is still one code version, and checking
+    that commit out gives the code of every row."""
+    pathspec = ["--", *CODE_PATHS, *(f":(exclude){p}" for p in DRAWING_PATHS)]
     try:
-        head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=REPO_ROOT, capture_output=True, text=True, timeout=10)
-        if head.returncode != 0:
+        last = _git("log", "-1", "--format=%H", *pathspec)
+        if last.returncode != 0 or not last.stdout.strip():
             return "unknown"
-        dirty = subprocess.run(
-            ["git", "status", "--porcelain", "--untracked-files=no"],
-            cwd=REPO_ROOT,
-            capture_output=True,
-            text=True,
-            timeout=10,
-        ).stdout.strip()
-        return head.stdout.strip() + ("-dirty" if dirty else "")
+        dirty = _git("status", "--porcelain", "--untracked-files=no", *pathspec).stdout.strip()
+        return last.stdout.strip() + ("-dirty" if dirty else "")
     except (OSError, subprocess.SubprocessError):
         return "unknown"
 

@@ -51,8 +51,10 @@ def metric_table(queries: pd.DataFrame, keys: list[str], maps: pd.DataFrame) -> 
         row["latency_p90_s"] = float(np.percentile(lat, 90)) if lat.size else math.nan
         for col in ("config_hash", "spec_hash", "git_commit"):
             row[col] = ",".join(sorted(set(map(str, g[col]))))
+        versions = g["data_version"].dropna().unique() if "data_version" in g else []
+        row["data_version"] = ",".join(f"{v:g}" for v in sorted(versions))  # empty: scenes that name none
         rows.append(row)
-    cols = [*keys, *METRIC_COLUMNS, *EXTRA_COLUMNS, "config_hash", "spec_hash", "git_commit"]
+    cols = [*keys, *METRIC_COLUMNS, *EXTRA_COLUMNS, "config_hash", "spec_hash", "data_version", "git_commit"]
     return pd.DataFrame(rows, columns=cols)
 
 

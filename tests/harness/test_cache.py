@@ -85,3 +85,37 @@ def test_localize_refuses_an_eval_map_of_another_scene(tmp_path: Path, capsys: p
     err = capsys.readouterr().err.strip()
     assert "map of scene 'a'" in err and "tiny-1" in err and "\n" not in err and not out.exists()
     assert main([*args, "--scene", str(data / "a"), "--out", str(out)]) == 0
+
+
+def test_the_code_version_is_the_last_commit_that_changed_the_code(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, request: pytest.FixtureRequest
+) -> None:
+    import subprocess
+
+    request.addfinalizer(cache.git_commit.cache_clear)  # the version of this repository, not the test's
+
+    def git(*args: str) -> str:
+        return subprocess.run(["git", *args], cwd=tmp_path, check=True, capture_output=True, text=True).stdout.strip()
+
+    def commit(path: str, text: str) -> str:
+        (tmp_path / path).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / path).write_text(text)
+        git("add", "-A")
+        git("-c", "user.name=t", "-c", "user.email=t@t", "commit", "-qm", path)
+        return git("rev-parse", "HEAD")
+
+    def version() -> str:
+        cache.git_commit.cache_clear()
+        return cache.git_commit()
+
+    git("init", "-q")
+    monkeypatch.setattr(cache, "REPO_ROOT", tmp_path)
+    code = commit("openreloc_bench/method.py", "a = 1\n")
+    assert version() == code
+    commit("leaderboard/multi-room/leaderboard.md", "results\n")
+    commit("openreloc_bench/harness/leaderboard/pages.py", "drawing = 1\n")  # draws boards: no number changes
+    assert version() == code
+    (tmp_path / "openreloc_bench/method.py").write_text("a = 2\n")
+    assert version() == code + "-dirty"
+    changed = commit("openreloc_bench/method.py", "a = 2\n")
+    assert version() == changed != code

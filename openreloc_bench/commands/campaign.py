@@ -1,12 +1,14 @@
 """Regenerate the leaderboard in one command: generate the plan's suites, build every method's maps,
 run every method on every suite, track, split and seed (and the ablations), then write one board per
 suite, a screenshot of each, and OUT/campaign.md (the commit, wall time by stage, the longest steps,
-the summary table).
+the summary table); --verdict-into FILE replaces the block between FILE's verdict markers with the
+verdict table (scripts/leaderboard.sh: README.md and leaderboard/README.md).
 
-Every row comes from the checked-out commit: a working tree with uncommitted changes is refused, and a
-WORK folder started at another commit too. Resumable: run the same command again and only the steps
+Every row comes from one code version, the last commit that changed the code (commits of results, docs
+or tests keep it): uncommitted changes to the code are refused, and a WORK folder started at another code
+version too. Resumable: run the same command again and only the steps
 not yet finished run (inside a step, only its unfinished jobs). Steps run in priority order (the query
-split of every method first, then the robustness splits, the further seeds, the ablations), so an
+split of every method first, then the robustness splits, the further seeds of the query split, the ablations), so an
 unfinished campaign already renders useful boards (--render-only).
 
 Example:
@@ -21,7 +23,7 @@ from pathlib import Path
 from openreloc_bench.harness.executors import EXECUTORS
 
 NAME = "campaign"
-HELP = "regenerate every board: all methods, suites, tracks, splits, seeds at one commit"
+HELP = "regenerate every board: all methods, suites, tracks, splits, seeds at one code version"
 ORDER = 45
 
 
@@ -36,6 +38,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--render-only", action="store_true", help="render the boards from the finished steps only")
     p.add_argument("--no-screenshot", action="store_true", help="skip the boards' screenshots")
     p.add_argument("--allow-dirty", action="store_true", help="run with uncommitted changes (a trial run)")
+    p.add_argument(
+        "--verdict-into", type=Path, action="append", default=[], metavar="FILE",
+        help="a README whose verdict block (between its verdict markers) the verdict table replaces; repeatable",
+    )  # fmt: skip
     p.add_argument("--list", action="store_true", help="print the plan's steps and whether each is done")
 
 
@@ -49,7 +55,7 @@ def run(args: argparse.Namespace) -> int:
     cfg = campaign.CampaignConfig(
         plan=plan, data=args.data, work=args.work, out=args.out, executor=args.executor, workers=args.workers,
         ray_address=args.ray_address, allow_dirty=args.allow_dirty, render_only=args.render_only,
-        screenshot=not args.no_screenshot,
+        screenshot=not args.no_screenshot, verdict_into=args.verdict_into,
     )  # fmt: skip
     failed = campaign.run_campaign(cfg)
     if failed:

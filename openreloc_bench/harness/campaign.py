@@ -1,15 +1,18 @@
-"""A leaderboard campaign: every method on every benchmark suite, track, split and seed, at one commit.
+"""A leaderboard campaign: every method on every benchmark suite, track, split and seed, at one code version.
 
 The campaign is a list of steps, each one ``eval`` call (one suite, track and method; its splits and
 seeds), ordered so that an interrupted or partial campaign already holds the most useful rows: first
-the query split of every method on both tracks, then the robustness splits, then the further seeds,
+the query split of every method on both tracks, then the robustness splits, then the further seeds of the query split,
 then the ablations. Each finished step is recorded in ``WORK/campaign.json`` with its wall time; a
-second run at the same commit skips recorded steps (and, inside a step, ``eval``'s finished jobs), and
-a run at another commit is refused, so every row of the boards it renders comes from one commit.
+second run at the same code version (:func:`cache.git_commit`: the last commit that changed the code)
+skips recorded steps (and, inside a step, ``eval``'s finished jobs), and a run at another code version is
+refused, so every row of the boards it renders comes from one version of the code, even when boards of a
+run that spans several sittings are committed as its steps finish.
 """
 
 from __future__ import annotations
 
+import math
 import shutil
 import time
 from collections.abc import Callable
@@ -23,12 +26,12 @@ from openreloc_bench import config, plugins
 from openreloc_bench.data import io, paths
 from openreloc_bench.data.scene import QUERY_SPLITS
 from openreloc_bench.errors import ConfigError, DataError
-from openreloc_bench.harness import cache, runner, tables
+from openreloc_bench.harness import cache, runner
 from openreloc_bench.harness.ablations import ABLATED_METHOD
 from openreloc_bench.harness.evaluation import tabulate
 from openreloc_bench.harness.suites import ensure_suite_scenes
 from openreloc_bench.methods import uses_masks
-from openreloc_bench.tracks import MASK_FREE, TRACKS
+from openreloc_bench.tracks import TRACKS
 
 STAGES = ("headline", "robustness", "seeds", "ablations")
 """The campaign's stages, in the order they run (each a priority: a partial campaign has the first)."""
@@ -43,6 +46,9 @@ class CampaignPlan:
     for choosing settings and are never reported."""
     suite_dir: str = "scenes"
     """Folder holding the suite YAMLs (relative to the working directory)."""
+    card_dir: str = "docs/cards"
+    """Folder holding the suites' dataset cards (``openreloc-bench card``): each board links
+    ``<card_dir>/<suite>.md`` where it is there."""
     methods: list[str] = field(
         default_factory=lambda: [
             "openreloc", "openreloc-paper", "goreloc", "sift-pnp", "orb-reloc", "retrieval", "posenet", "nearest-frame",
@@ -60,7 +66,7 @@ class CampaignPlan:
     """Query splits; the first is the headline split, the others are the robustness stage."""
     seeds: list[int] = field(default_factory=lambda: [0, 1, 2])
     """Seeds of the seeded methods; the first runs in the headline and robustness stages, the others in
-    the seeds stage (deterministic methods run once)."""
+    the seeds stage, on the headline split (deterministic methods run once)."""
     ablation_suites: list[str] = field(default_factory=lambda: ["multi-room"])
     """Suites on which the paper's ablation rows of OpenReLoc run (headline split, first seed)."""
     ablation_track: str = "oracle-mask"
@@ -71,6 +77,9 @@ class CampaignPlan:
     plugins: list[str] = field(default_factory=list)
     """Plugins to import first: module names or ``.py`` files relative to the working directory, whose
     import registers methods with ``openreloc_bench.methods.register``."""
+    estimate_h: dict[str, float] = field(default_factory=dict)
+    """The plan's estimate of each stage's wall time [h] (keys from :data:`STAGES`), printed beside the
+    measured time in ``campaign.md``, so a run says how far the estimate was off."""
 
 
 @dataclass(frozen=True)
@@ -110,6 +119,11 @@ def check_plan(plan: CampaignPlan) -> None:
             raise ConfigError(f"plan: '{what}' must name at least one entry, each once")
     if not plan.splits or len(set(plan.splits)) != len(plan.splits) or not plan.seeds:
         raise ConfigError("plan: 'splits' and 'seeds' must name at least one entry, splits each once")
+    for stage, hours in plan.estimate_h.items():
+        if stage not in STAGES or not math.isfinite(hours) or hours < 0:
+            raise ConfigError(
+                f"plan: estimate_h takes hours >= 0 of the stages {', '.join(STAGES)}, got {stage}: {hours}"
+            )
     for track in {*plan.tracks, plan.ablation_track}:
         if track not in TRACKS:
             raise ConfigError(f"plan: unknown track '{track}' (known: {', '.join(TRACKS)})")
@@ -154,7 +168,7 @@ def plan_steps(plan: CampaignPlan) -> list[Step]:
     if rest:
         per_method("robustness", rest, plan.seeds[:1], plan.methods)
     if len(plan.seeds) > 1:
-        per_method("seeds", plan.splits, plan.seeds, [m for m in plan.methods if is_seeded(m)])
+        per_method("seeds", first, plan.seeds, [m for m in plan.methods if is_seeded(m)])
     steps += [
         Step("ablations", s, plan.ablation_track, ABLATED_METHOD, tuple(first), tuple(plan.seeds[:1]), True)
         for s in plan.ablation_suites
@@ -186,13 +200,16 @@ class CampaignConfig:
     """Render the boards from the finished steps; run nothing."""
     screenshot: bool = True
     """Save a screenshot of each board's HTML page (when a headless Chromium is installed)."""
+    verdict_into: list[Path] = field(default_factory=list)
+    """READMEs whose block between the verdict markers (``campaign_page.VERDICT_BEGIN`` / ``VERDICT_END``)
+    is replaced with the verdict table of the boards rendered."""
 
 
 class Ledger:
-    """``WORK/campaign.json``: the campaign's commit, and each finished step with its wall time.
+    """``WORK/campaign.json``: the campaign's code version, and each finished step with its wall time.
 
-    ``commit`` is the checkout's: a ledger begun at another commit is refused, since its rows and new ones
-    would mix. ``None`` opens it whatever its commit, to read it only (``--list`` from another checkout).
+    ``commit`` is the checkout's code version: a ledger begun at another is refused, since its rows and new
+    ones would mix. ``None`` opens it whatever its commit, to read it only (``--list`` from another checkout).
     """
 
     def __init__(self, work: Path, commit: str | None):
@@ -204,7 +221,7 @@ class Ledger:
                 raise DataError(self.path, "not a campaign record (remove it to start the campaign afresh)")
             if commit is not None and self.data.get("commit") != commit:
                 raise ConfigError(
-                    f"{work} holds a campaign run at commit {self.data.get('commit')}, this checkout is at {commit}: "
+                    f"{work} holds a campaign run at commit {self.data.get('commit')}, this checkout's code is at {commit}: "
                     "check that commit out to go on with it, or give another --work"
                 )
 
@@ -244,6 +261,9 @@ def run_campaign(cfg: CampaignConfig, say: Callable[[str], None] = print) -> int
         )
     if cfg.workers < 1:
         raise ConfigError("--workers must be >= 1")
+    from openreloc_bench.harness.leaderboard import campaign_page
+
+    campaign_page.check_verdict_files(cfg.verdict_into)
     cfg.work.mkdir(parents=True, exist_ok=True)
     with paths.directory_lock(cfg.work, "openreloc-bench campaign"):
         ledger = Ledger(cfg.work, commit)
@@ -280,14 +300,6 @@ def _run_steps(cfg: CampaignConfig, ledger: Ledger, say: Callable[[str], None]) 
         ledger.add(step.key, {"step": step.record(), "wall_s": report.wall_s, "errors": report.errors,
                               "queries": report.queries, "maps_built": report.maps_built, "maps_s": report.maps_s})  # fmt: skip
     return failed
-
-
-def timings(ledger: Ledger) -> pd.DataFrame:
-    """Wall time of every recorded step, longest first."""
-    rows = [
-        {"step": key, "stage": key.split("/")[0], "wall_s": rec["wall_s"]} for key, rec in ledger.data["steps"].items()
-    ]
-    return pd.DataFrame(rows, columns=["step", "stage", "wall_s"]).sort_values("wall_s", ascending=False)
 
 
 def new_jobs(steps: list[Step]) -> list[int]:
@@ -343,7 +355,7 @@ def render(cfg: CampaignConfig, ledger: Ledger, say: Callable[[str], None]) -> N
     """Every suite's board from its results folder, the campaign page and, where Chromium is installed,
     a screenshot of each board."""
     from openreloc_bench.harness import browser
-    from openreloc_bench.harness.leaderboard import write_leaderboard
+    from openreloc_bench.harness.leaderboard import campaign_page, write_leaderboard
 
     summaries = []
     for suite in cfg.plan.suites:
@@ -351,7 +363,8 @@ def render(cfg: CampaignConfig, ledger: Ledger, say: Callable[[str], None]) -> N
         if tabulate(results) is None:
             continue
         board = cfg.out / suite
-        write_leaderboard([results], board, cfg.data)
+        card = Path(cfg.plan.card_dir) / f"{suite}.md"
+        write_leaderboard([results], board, cfg.data, card if card.is_file() else None)
         for abl in sorted((results / "tables").glob("ablations_*.md")):
             shutil.copyfile(abl, board / abl.name)
         summaries.append(pd.read_csv(board / "leaderboard.csv").assign(suite=suite))
@@ -362,44 +375,17 @@ def render(cfg: CampaignConfig, ledger: Ledger, say: Callable[[str], None]) -> N
     steps = plan_steps(cfg.plan)
     pending = [s.key for s in steps if not ledger.done(s)]
     rows = pd.concat(summaries) if summaries else pd.DataFrame()
-    text = campaign_page(ledger, rows, pending, cfg.plan, remaining_s(steps, ledger))
+    named = {"suites": cfg.plan.suites, "tracks": cfg.plan.tracks, "methods": cfg.plan.methods}
+    text = campaign_page.campaign_page(
+        ledger.data, rows, pending, STAGES, cfg.plan.estimate_h, named, left_text(remaining_s(steps, ledger))
+    )
     io.atomic_write_text(cfg.out / "campaign.md", text)
     say(text.split("\n## Summary")[0].rstrip())
+    if not rows.empty:
+        for readme in cfg.verdict_into:
+            block = campaign_page.verdict_block(
+                rows, named, cfg.out.resolve(), readme, ledger.data["commit"], len(pending)
+            )
+            campaign_page.write_verdict(readme, block)
+            say(f"verdict written into {readme}")
     say(f"boards in {cfg.out}")
-
-
-def campaign_page(
-    ledger: Ledger, suite_rows: pd.DataFrame, pending: list[str], plan: CampaignPlan, left_s: float | None = None
-) -> str:
-    """``campaign.md``: the commit, the wall time by stage and the longest steps, what is still to run
-    (and about how long, ``left_s``), and the headline-split recall of every method on every suite and track."""
-    t = timings(ledger)
-    total = t["wall_s"].sum()
-    lines = [
-        "# Leaderboard campaign",
-        "",
-        f"Every row of the boards below comes from commit `{ledger.data['commit']}`.",
-        f"Wall time of the recorded steps: {total / 3600:.2f} h ({len(t)} steps); "
-        f"{len(pending)} step(s) of the plan still to run{left_text(left_s) if pending else ''}.",
-        "",
-    ]
-    by_stage = t.groupby("stage")["wall_s"].sum()
-    stages = [s for s in ["generate", *STAGES] if s in by_stage]
-    shares = [[s, f"{by_stage[s] / 3600:.2f}", f"{100 * by_stage[s] / max(total, 1e-9):.0f}"] for s in stages]
-    lines += tables.md_table(["Stage", "Wall [h]", "Share [%]"], shares)
-    lines += ["", "Longest steps:", ""] + [f"- `{r.step}`: {r.wall_s / 60:.1f} min" for r in t.head(8).itertuples()]
-    if pending:
-        lines += ["", "Still to run:", ""] + [f"- `{p}`" for p in pending]
-    if not suite_rows.empty:
-        head = suite_rows[suite_rows["split"] == plan.splits[0]]
-        lines += ["", f"## Summary: R@50cm / R@25cm [%] on the {plan.splits[0]} split", ""]
-        suites = [s for s in plan.suites if s in set(head["suite"])]
-        order = {t: k for k, t in enumerate([*plan.tracks, MASK_FREE])}
-        head = head[head["method"].isin(plan.methods)]
-        head = head.assign(_rank=head["track"].map(lambda x: order.get(x, len(order))))
-        rows = []
-        for (method, track), g in head.sort_values(["_rank", "method"]).groupby(["method", "track"], sort=False):
-            cells = {r.suite: f"{r.recall_50cm:.1f} / {r.recall_25cm:.1f}" for r in g.itertuples()}
-            rows.append([method, track, *(cells.get(s, "-") for s in suites)])
-        lines += tables.md_table(["Method", "Track", *suites], rows)
-    return "\n".join(lines) + "\n"

@@ -9,6 +9,7 @@ import pytest
 
 from openreloc_bench.errors import ConfigError, DataError
 from openreloc_bench.harness import cache, campaign, runner
+from openreloc_bench.harness.leaderboard import campaign_page
 
 SUITE = "name: tiny\nscenes:\n  - {name: t1, seed: 3, width: 32, height: 24, n_query: 2, max_mapping_frames: 2, n_displaced: 0}\n"
 
@@ -50,6 +51,7 @@ def test_steps_run_headline_first_and_mask_free_methods_once(plan: campaign.Camp
     ]  # fmt: skip
     assert steps[0].splits == ("query",) and steps[0].seeds == (0,)
     assert steps[3].splits == ("query_light1",) and steps[-1].seeds == (0, 1)
+    assert {s.splits for s in steps if s.stage == "seeds"} == {("query",)}  # further seeds: the headline split only
 
 
 def test_oracle_only_diagnostics_skip_the_predicted_track(plan: campaign.CampaignPlan) -> None:
@@ -68,7 +70,7 @@ def test_ablations_run_last_on_their_suites(plan: campaign.CampaignPlan) -> None
 def test_each_step_counts_only_the_runs_no_earlier_step_made(plan: campaign.CampaignPlan) -> None:
     plan.ablation_suites = ["tiny"]
     # the seeds stage repeats seed 0 (already run); the ablation step adds every ablation row
-    assert campaign.new_jobs(campaign.plan_steps(plan)) == [1, 1, 1, 1, 1, 1, 2, 2, 11]
+    assert campaign.new_jobs(campaign.plan_steps(plan)) == [1, 1, 1, 1, 1, 1, 1, 1, 11]
 
 
 def test_time_left_comes_from_the_pace_of_like_steps(plan: campaign.CampaignPlan, tmp_path: Path) -> None:
@@ -78,7 +80,7 @@ def test_time_left_comes_from_the_pace_of_like_steps(plan: campaign.CampaignPlan
     for step, wall, maps in [(steps[0], 100.0, 60.0), (steps[1], 30.0, 10.0)]:
         ledger.add(step.key, {"step": step.record(), "errors": [], "wall_s": wall, "maps_s": maps, "maps_built": 1})
     # test-oracle: 40 s a run + 60 s of maps in the headline; nearest-frame: 20 s a run
-    headline, robustness, seeds = 40 + 60, 40 + 20 + 40, 2 * 40 + 2 * 40
+    headline, robustness, seeds = 40 + 60, 40 + 20 + 40, 40 + 40
     assert campaign.remaining_s(steps, ledger) == pytest.approx(headline + robustness + seeds)
     assert campaign.left_text(360.0) == " (about 0.1 h left at the pace so far)"
 
@@ -141,7 +143,7 @@ def test_another_commit_or_a_dirty_tree_is_refused(
     plan.splits, plan.seeds, plan.methods, plan.tracks = ["query"], [0], ["nearest-frame"], ["predicted"]
     campaign.run_campaign(config(plan, tmp_path), lambda s: None)
     commit[0] = "b" * 40
-    with pytest.raises(ConfigError, match="at commit a+, this checkout is at b+"):
+    with pytest.raises(ConfigError, match="at commit a+, this checkout's code is at b+"):
         campaign.run_campaign(config(plan, tmp_path), lambda s: None)
     commit[0] = "a" * 40 + "-dirty"
     with pytest.raises(ConfigError, match="commit first"):
@@ -156,6 +158,8 @@ def test_another_commit_or_a_dirty_tree_is_refused(
         ({"tracks": ["predicted", "predicted"]}, "each once"),
         ({"ablation_suites": ["elsewhere"]}, "not one of the plan's suites"),
         ({"suites": ["missing"]}, "no suite file"),
+        ({"estimate_h": {"headline": float("nan")}}, "estimate_h"),
+        ({"estimate_h": {"warm-up": 1.0}}, "estimate_h"),
     ],
 )
 def test_bad_plans_fail_in_one_line(plan: campaign.CampaignPlan, change: dict, message: str) -> None:
@@ -197,3 +201,35 @@ def test_a_damaged_record_is_one_line(plan: campaign.CampaignPlan, tmp_path: Pat
     (tmp_path / "work" / "campaign.json").write_text('["not", "a", "record"]')
     with pytest.raises(DataError, match="not a campaign record"):
         campaign.run_campaign(config(plan, tmp_path), lambda s: None)
+
+
+def test_the_page_the_readmes_and_the_boards_carry_verdict_estimate_and_card(
+    plan: campaign.CampaignPlan, tmp_path: Path, commit: list[str]
+) -> None:
+    plan.splits, plan.seeds, plan.estimate_h = ["query"], [0], {"headline": 1.5, "seeds": 0.5}
+    plan.card_dir = str(tmp_path / "cards")
+    (tmp_path / "cards").mkdir()
+    (tmp_path / "cards" / "tiny.md").write_text("# Dataset card: tiny\n")
+    readme = tmp_path / "README.md"
+    readme.write_text(f"# Title\n\n{campaign_page.VERDICT_BEGIN}\nold text\n{campaign_page.VERDICT_END}\n\n## More\n")
+    assert campaign.run_campaign(config(plan, tmp_path, verdict_into=[readme]), lambda s: None) == 0
+    page = (tmp_path / "board" / "campaign.md").read_text()
+    assert "| headline |" in page and "| 1.5 |" in page and "| all |" in page and "| 2.0 |" in page
+    text = readme.read_text()
+    assert text.startswith("# Title\n\n") and text.endswith(f"{campaign_page.VERDICT_END}\n\n## More\n")
+    assert "old text" not in text and f"code version `{commit[0][:12]}`" in text
+    assert "- **[tiny](board/tiny/leaderboard.md)**: Predicted track:" in text
+    assert "| test-oracle | predicted |" in text
+    for page in ("leaderboard.md", "index.html"):  # each board links its data's card
+        assert "../../cards/tiny.md" in (tmp_path / "board" / "tiny" / page).read_text()
+
+
+@pytest.mark.parametrize("content", ["no markers\n", f"{campaign_page.VERDICT_END}\n{campaign_page.VERDICT_BEGIN}\n"])
+def test_a_readme_without_its_verdict_markers_is_refused_before_any_work(
+    plan: campaign.CampaignPlan, tmp_path: Path, commit: list[str], content: str
+) -> None:
+    readme = tmp_path / "README.md"
+    readme.write_text(content)
+    with pytest.raises(ConfigError, match="verdict-into"):
+        campaign.run_campaign(config(plan, tmp_path, verdict_into=[readme]), lambda s: None)
+    assert not (tmp_path / "work").exists() and readme.read_text() == content

@@ -9,6 +9,7 @@ each difficulty axis, as plots and as numbers (``difficulty.csv``). The rows (:m
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable
 from pathlib import Path
 
@@ -36,9 +37,10 @@ from openreloc_bench.harness.tables import build_tables, pool_seeds
 from openreloc_bench.tracks import MASK_FREE
 
 
-def write_leaderboard(results: list[Path], out: Path, data: Path | None = None) -> list[Path]:
+def write_leaderboard(results: list[Path], out: Path, data: Path | None = None, card: Path | None = None) -> list[Path]:
     """Render everything into ``out`` (never inside or around a results directory); returns the files written.
-    ``data``: the dataset directory, for each scene's floor plan under its top-down plot."""
+    ``data``: the dataset directory, for each scene's floor plan under its top-down plot; ``card``: the
+    data's dataset card (``openreloc-bench card``), which the pages link."""
     q = recorded_tracks(pool_seeds(load_queries(results)))  # pooled first: seeded runs carry the method's name
     for r in results:
         paths.check_output(out, [r], "--out")
@@ -73,10 +75,13 @@ def write_leaderboard(results: list[Path], out: Path, data: Path | None = None) 
             difficulty_plots.append(path)
     versions = data_versions(q)
     rel = [str(p.relative_to(out)) for p in difficulty_plots]
+    card_link = os.path.relpath(card.resolve(), out.resolve()) if card else ""
     io.atomic_write_text(out / "leaderboard.csv", suite.to_csv(index=False))
     io.atomic_write_text(out / "difficulty.csv", binned.to_csv(index=False))
-    io.atomic_write_text(out / "leaderboard.md", to_markdown(b, scenes, versions, rel))
-    io.atomic_write_text(out / "index.html", to_html(b, [str(p.relative_to(out)) for p in plots], versions, rel))
+    io.atomic_write_text(out / "leaderboard.md", to_markdown(b, scenes, versions, rel, card_link))
+    io.atomic_write_text(
+        out / "index.html", to_html(b, [str(p.relative_to(out)) for p in plots], versions, rel, card_link)
+    )
     return [
         out / "leaderboard.md",
         out / "leaderboard.csv",

@@ -45,10 +45,13 @@ DIFFICULTY_TEXT = (
 )
 
 
-def to_markdown(b: pd.DataFrame, scenes: pd.DataFrame, versions: str = "", difficulty_plots: Sequence[str] = ()) -> str:
-    """The board: its verdict (:func:`verdict`), one table per track (the predicted track's first), the
-    robustness table, per-scene tables, map sizes and the recall-vs-difficulty plots (``difficulty_plots``,
-    paths relative to the board)."""
+def to_markdown(
+    b: pd.DataFrame, scenes: pd.DataFrame, versions: str = "", difficulty_plots: Sequence[str] = (), card: str = ""
+) -> str:
+    """The board: its verdict (:func:`verdict`), a link to the data's ``card`` (a path relative to the
+    board, where there is one), one table per track (the predicted track's first), the robustness table,
+    per-scene tables, map sizes and the recall-vs-difficulty plots (``difficulty_plots``, paths relative
+    to the board)."""
     head = [BOARD_COLUMNS[c] for c in b.columns]
     lines = [
         f"# {_title(versions)}",
@@ -57,7 +60,7 @@ def to_markdown(b: pd.DataFrame, scenes: pd.DataFrame, versions: str = "", diffi
         "",
         "Recall = share of all queries (failures count); MTE/MRE = mean error of the queries within the threshold.",
         "",
-        provenance(b),
+        provenance(b) + (f" The data: [its dataset card]({card})." if card else ""),
     ]
     for title, t in _by_track(b):
         lines += [
@@ -112,9 +115,11 @@ def _html_table(title: str, head: list[str], rows: list[list[str]]) -> str:
     )
 
 
-def to_html(b: pd.DataFrame, plots: list[str], versions: str = "", difficulty_plots: Sequence[str] = ()) -> str:
-    """The sortable page: the board's verdict, its tables, the robustness table, ``plots`` side by side
-    and the recall-vs-difficulty plots full width."""
+def to_html(
+    b: pd.DataFrame, plots: list[str], versions: str = "", difficulty_plots: Sequence[str] = (), card: str = ""
+) -> str:
+    """The sortable page: the board's verdict, a link to the data's ``card``, its tables, the robustness
+    table, ``plots`` side by side and the recall-vs-difficulty plots full width."""
     head = [BOARD_COLUMNS[c] for c in b.columns]
     tables = "".join(
         _html_table(title, head, [[format_cell(c, r[c]) for c in b.columns] for _, r in t.iterrows()])
@@ -130,6 +135,7 @@ def to_html(b: pd.DataFrame, plots: list[str], versions: str = "", difficulty_pl
             f'<figure><img class="wide" src="{html.escape(p)}" alt="{html.escape(p)}"></figure>'
             for p in difficulty_plots
         )
+    card_link = f' The data: <a href="{html.escape(card)}">its dataset card</a>.' if card else ""
     return f"""<!doctype html>
 <html lang="en"><head><meta charset="utf-8"><title>{html.escape(_title(versions))}</title>
 <style>
@@ -148,7 +154,7 @@ img.wide {{ max-width: 98%; float: none; }} .clear {{ clear: both; }}
 <h1>{html.escape(_title(versions))}</h1>
 <p class="verdict"><strong>{html.escape(verdict_lead())}:</strong> {html.escape(verdict(b))}</p>
 <p>Recall = share of all queries (failed queries count). MTE/MRE = mean error of the queries within the
-threshold. Click a column header to sort. {html.escape(provenance(b))}</p>
+threshold. Click a column header to sort. {html.escape(provenance(b))}{card_link}</p>
 {tables}{imgs}
 <script>{_SORT_JS}</script>
 </body></html>

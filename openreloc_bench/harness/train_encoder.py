@@ -27,7 +27,14 @@ from openreloc_bench.vision import create_segmenter, segmenter_fingerprint
 from openreloc_bench.vision import vocabulary as voc
 from openreloc_bench.vision.base import Segmenter
 from openreloc_bench.vision.crops import CropSet, crops_from_scenes
-from openreloc_bench.vision.offline import MINILM_PACKAGE, OfflineEncoder, TextTower, TowerConfig, load_tower
+from openreloc_bench.vision.offline import (
+    MINILM_PACKAGE,
+    ImageTower,
+    OfflineEncoder,
+    TextTower,
+    TowerConfig,
+    load_tower,
+)
 from openreloc_bench.vision.training import TrainConfig, evaluate, save_weights, train_tower, training_device
 
 CROP_SPLITS = ("mapping", *LIGHT_SPLITS)
@@ -81,11 +88,22 @@ def main(cfg: EncoderTrainingConfig, say: Callable[[str], None] = print) -> None
     device = training_device(cfg.train.device)  # refuse a missing GPU before generating scenes
     if cfg.data is not None:  # the user's scenes: weights and caches never go among them
         paths.check_output(cfg.out, [cfg.data / "train", cfg.data / "eval"], "--out")
+    # a mistyped segmenter or missing starting weights fail here, not after the scenes are generated
+    segmenter = create_segmenter(cfg.crop_segmenter) if cfg.crop_segmenter else None
+    init, init_cfg, _ = load_tower(cfg.init) if cfg.init else (None, None, None)
+    if init_cfg is not None and init_cfg != cfg.tower:
+        raise ConfigError(f"--init {cfg.init}: its tower {init_cfg} differs from this run's {cfg.tower}")
     with paths.directory_lock(cfg.out, "openreloc-bench train-encoder"):
-        _train(cfg, device, say)
+        _train(cfg, device, segmenter, init, say)
 
 
-def _train(cfg: EncoderTrainingConfig, device: torch.device, say: Callable[[str], None]) -> None:
+def _train(
+    cfg: EncoderTrainingConfig,
+    device: torch.device,
+    segmenter: Segmenter | None,
+    init: ImageTower | None,
+    say: Callable[[str], None],
+) -> None:
     seed = cfg.train.seed
     torch.set_num_threads(cfg.train.threads)
     t0 = time.time()
@@ -102,8 +120,6 @@ def _train(cfg: EncoderTrainingConfig, device: torch.device, say: Callable[[str]
     if generated:
         say(f"generated {len(train_dirs) + len(eval_dirs)} scenes in {time.time() - t0:.0f} s")
     train_seeds, eval_seeds = held_out_seeds(train_dirs, eval_dirs)
-    segmenter = create_segmenter(cfg.crop_segmenter) if cfg.crop_segmenter else None
-    init, init_cfg, _ = load_tower(cfg.init) if cfg.init else (None, None, None)
     train = cached_crops(cfg, "train", train_dirs, seed, segmenter)
     held = cached_crops(cfg, "eval", eval_dirs, seed + 1, segmenter)
     if len(train) < 2 or len(held) < 1:
@@ -112,8 +128,6 @@ def _train(cfg: EncoderTrainingConfig, device: torch.device, say: Callable[[str]
         )
     say(f"{len(train)} training crops of {len(set(train.instance_keys))} objects; {len(held)} eval crops")
     text = TextTower(MINILM_PACKAGE)
-    if init_cfg is not None and init_cfg != cfg.tower:
-        raise ConfigError(f"--init {cfg.init}: its tower {init_cfg} differs from this run's {cfg.tower}")
     tower, info = train_tower(train, text, cfg.train, cfg.tower, log=say, init=init)
     meta = {
         "text_model": MINILM_PACKAGE,

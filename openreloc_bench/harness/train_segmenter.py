@@ -22,6 +22,7 @@ from openreloc_bench.harness.training_data import SEGMENTER_DATA, held_out_seeds
 from openreloc_bench.vision.learned_segment import NetConfig, save_weights
 from openreloc_bench.vision.segmenter_training import (
     SegTrainConfig,
+    check_crop,
     evaluate_thresholds,
     load_frames,
     train_boundary_net,
@@ -65,6 +66,7 @@ class SegmenterTrainingConfig:
 def main(cfg: SegmenterTrainingConfig, say: Callable[[str], None] = print) -> dict[str, Any]:
     """Train, write the weights with their card into ``cfg.out`` and say the held-out scores; returns the card."""
     device = training_device(cfg.train.device)  # refuse a missing GPU before generating anything
+    check_crop(cfg.train, cfg.net)  # and a crop the network cannot take
     seed, threads = cfg.train.seed, cfg.train.threads
     with paths.directory_lock(cfg.out, "openreloc-bench train-segmenter"):
         train_dirs, eval_dirs, _ = training_scene_sets(

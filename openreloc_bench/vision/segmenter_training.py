@@ -266,6 +266,12 @@ def recipe_id(cfg: SegTrainConfig, net_cfg: NetConfig, scenes: Sequence[str], in
     return hashlib.sha256(json.dumps(parts, sort_keys=True).encode()).hexdigest()[:16]
 
 
+def check_crop(cfg: SegTrainConfig, net_cfg: NetConfig) -> None:
+    """A crop side the network cannot take (not a multiple of its stride): a one-line error."""
+    if cfg.crop % net_cfg.stride:
+        raise ConfigError(f"crop {cfg.crop} must be a multiple of the network's stride {net_cfg.stride}")
+
+
 def train_boundary_net(
     frames: FrameSet,
     net_cfg: NetConfig,
@@ -276,8 +282,7 @@ def train_boundary_net(
 ) -> tuple[BoundaryNet, dict[str, Any]]:
     """Train on ``frames``, from random weights or from the weights directory ``init`` (fine-tuning,
     e.g. on scenes of a new data version); resumes from ``checkpoint`` when it holds the same recipe."""
-    if cfg.crop % net_cfg.stride:
-        raise ConfigError(f"crop {cfg.crop} must be a multiple of the network's stride {net_cfg.stride}")
+    check_crop(cfg, net_cfg)
     if cfg.crop > min(frames.ids.shape[1:]):
         raise ConfigError(f"crop {cfg.crop} is larger than the frames ({frames.ids.shape[2]}x{frames.ids.shape[1]})")
     device = training_device(cfg.device)

@@ -65,6 +65,19 @@ def test_train_encoder_refuses_a_device_it_cannot_use(tmp_path: Path, capsys: py
     assert not (tmp_path / "w").exists()  # refused before generating anything
 
 
+@pytest.mark.parametrize(
+    ("bad", "message"),
+    [(["--crop-segmenter", "bogus"], "unknown segmenter 'bogus'"), (["--init", "missing"], "weights not found")],
+)
+def test_a_wrong_segmenter_or_starting_weights_fail_before_any_scene(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], bad: list[str], message: str
+) -> None:
+    tiny = ["--scenes", "1", "--eval-scenes", "1", "--width", "16", "--height", "16"]  # quick, were it generated
+    assert main(["train-encoder", "--out", str(tmp_path / "w"), *tiny, *bad]) == 2
+    assert message in capsys.readouterr().err
+    assert not (tmp_path / "w").exists()
+
+
 def test_training_scenes_stay_out_of_the_validation_range(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     # --seed 9000: the scene seeds would start at TRAINING_SEED_MIN + 9,000,000 = VALIDATION_SEED_MIN
     assert (

@@ -73,3 +73,4 @@ def test_train_segmenter_bad_arguments(trained: tuple[Path, Path], tmp_path: Pat
     assert train(trained[0], tmp_path / "w", *extra) == 2
     err = capsys.readouterr().err
     assert message in err and "Traceback" not in err
+    assert not (tmp_path / "w").exists()  # refused before any work

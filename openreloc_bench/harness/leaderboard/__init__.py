@@ -32,6 +32,7 @@ from openreloc_bench.harness.leaderboard.rows import (
     load_maps,
     load_queries,
     recorded_tracks,
+    robustness_drops,
 )
 from openreloc_bench.harness.tables import build_tables, pool_seeds
 from openreloc_bench.tracks import MASK_FREE
@@ -78,9 +79,10 @@ def write_leaderboard(results: list[Path], out: Path, data: Path | None = None, 
     card_link = os.path.relpath(card.resolve(), out.resolve()) if card else ""
     io.atomic_write_text(out / "leaderboard.csv", suite.to_csv(index=False))
     io.atomic_write_text(out / "difficulty.csv", binned.to_csv(index=False))
-    io.atomic_write_text(out / "leaderboard.md", to_markdown(b, scenes, versions, rel, card_link))
+    drops = robustness_drops(q)
+    io.atomic_write_text(out / "leaderboard.md", to_markdown(b, scenes, versions, rel, card_link, drops))
     io.atomic_write_text(
-        out / "index.html", to_html(b, [str(p.relative_to(out)) for p in plots], versions, rel, card_link)
+        out / "index.html", to_html(b, [str(p.relative_to(out)) for p in plots], versions, rel, card_link, drops)
     )
     return [
         out / "leaderboard.md",

@@ -58,12 +58,15 @@ def campaign_page(
     the plan's ``estimate_h`` per stage and its ``suites``, ``tracks`` and ``methods``."""
     t = timings(record["steps"])
     total = t["wall_s"].sum()
+    generated = int((t["stage"] == "generate").sum())  # one per suite, outside the plan's numbered steps
+    done = len(t) - generated
     lines = [
         "# Leaderboard campaign",
         "",
         f"Every row of the boards comes from the code at commit `{record['commit']}` (the last commit that "
         "changed the code: commits of results since keep it).",
-        f"Wall time of the recorded steps: {total / 3600:.2f} h ({len(t)} steps); "
+        f"Wall time of the recorded steps: {total / 3600:.2f} h ({done} of the plan's {done + len(pending)} "
+        f"steps and {generated} data generation step(s)); "
         f"{len(pending)} step(s) of the plan still to run{left if pending else ''}.",
         "",
     ]

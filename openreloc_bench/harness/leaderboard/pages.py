@@ -13,7 +13,6 @@ from openreloc_bench.harness.leaderboard.rows import (
     TRACK_TITLES,
     format_cell,
     provenance,
-    robustness_drops,
     track_groups,
     track_rank,
 )
@@ -46,12 +45,17 @@ DIFFICULTY_TEXT = (
 
 
 def to_markdown(
-    b: pd.DataFrame, scenes: pd.DataFrame, versions: str = "", difficulty_plots: Sequence[str] = (), card: str = ""
+    b: pd.DataFrame,
+    scenes: pd.DataFrame,
+    versions: str = "",
+    difficulty_plots: Sequence[str] = (),
+    card: str = "",
+    drops: pd.DataFrame | None = None,
 ) -> str:
     """The board: its verdict (:func:`verdict`), a link to the data's ``card`` (a path relative to the
-    board, where there is one), one table per track (the predicted track's first), the robustness table,
-    per-scene tables, map sizes and the recall-vs-difficulty plots (``difficulty_plots``, paths relative
-    to the board)."""
+    board, where there is one), one table per track (the predicted track's first), the robustness table
+    (``drops``: :func:`~.rows.robustness_drops`), per-scene tables, map sizes and the recall-vs-difficulty
+    plots (``difficulty_plots``, paths relative to the board)."""
     head = [BOARD_COLUMNS[c] for c in b.columns]
     lines = [
         f"# {_title(versions)}",
@@ -69,8 +73,7 @@ def to_markdown(
             "",
             *md_table(head, [[format_cell(c, r[c]) for c in b.columns] for _, r in t.iterrows()]),
         ]
-    drops = robustness_drops(b)
-    if not drops.empty:
+    if drops is not None and not drops.empty:
         lines += ["", f"## {ROBUSTNESS_TITLE}", "", *md_table(list(drops.columns), drops.values.tolist())]
     scenes = scenes.assign(_rank=scenes["track"].map(track_rank)).sort_values(["_rank", "split"], kind="stable")
     for (track, split), t in scenes.groupby(["track", "split"], sort=False):
@@ -116,17 +119,21 @@ def _html_table(title: str, head: list[str], rows: list[list[str]]) -> str:
 
 
 def to_html(
-    b: pd.DataFrame, plots: list[str], versions: str = "", difficulty_plots: Sequence[str] = (), card: str = ""
+    b: pd.DataFrame,
+    plots: list[str],
+    versions: str = "",
+    difficulty_plots: Sequence[str] = (),
+    card: str = "",
+    drops: pd.DataFrame | None = None,
 ) -> str:
     """The sortable page: the board's verdict, a link to the data's ``card``, its tables, the robustness
-    table, ``plots`` side by side and the recall-vs-difficulty plots full width."""
+    table (``drops``), ``plots`` side by side and the recall-vs-difficulty plots full width."""
     head = [BOARD_COLUMNS[c] for c in b.columns]
     tables = "".join(
         _html_table(title, head, [[format_cell(c, r[c]) for c in b.columns] for _, r in t.iterrows()])
         for title, t in _by_track(b)
     )
-    drops = robustness_drops(b)
-    if not drops.empty:
+    if drops is not None and not drops.empty:
         tables += _html_table(ROBUSTNESS_TITLE, list(drops.columns), drops.values.tolist())
     imgs = "".join(f'<figure><img src="{html.escape(p)}" alt="{html.escape(p)}"></figure>' for p in plots)
     if difficulty_plots:

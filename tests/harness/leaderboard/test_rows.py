@@ -10,37 +10,40 @@ from openreloc_bench.harness.leaderboard.rows import binned_recall, provenance, 
 from tests.harness.leaderboard.boards import errors
 
 
-def rows(method: str, track: str, recalls: dict[str, tuple[float, float]], seeds: dict[str, int]) -> pd.DataFrame:
+def queries(method: str, track: str, split: str, t_err: list[float], seed: int | None = None) -> pd.DataFrame:
+    """Per-query rows of one run: one query per translation error."""
     return pd.DataFrame(
-        [
-            {"method": method, "track": track, "split": split, "recall_50cm": r50, "recall_25cm": r25,
-             "n_seeds": seeds.get(split, 1), "git_commit": "abc"}
-            for split, (r50, r25) in recalls.items()
-        ]
+        {"method": method, "track": track, "split": split, "seed": pd.array([seed] * len(t_err), dtype="Int64"),
+         **errors(t_err)}
     )  # fmt: skip
 
 
-def test_drops_are_changes_from_the_query_split_in_points() -> None:
-    b = pd.concat(
+def test_drops_are_changes_from_the_query_split_over_the_same_seeds_in_points() -> None:
+    q = pd.concat(
         [
-            rows("m", "predicted", {"query": (40.0, 30.0), "query_light4": (35.5, 30.0)}, {}),
-            rows("m", "oracle-mask", {"query": (90.0, 80.0), "query_displaced": (91.0, 79.0)}, {"query": 3}),
-            rows("only-query", "predicted", {"query": (10.0, 5.0)}, {}),
+            queries("m", "predicted", "query", [0.1, 0.1, 0.3, 0.6]),
+            queries("m", "predicted", "query_light4", [0.1, 0.3, 0.3, 0.6]),
+            queries("m", "oracle-mask", "query", [0.1, 0.1, 0.1, 0.1], seed=0),
+            queries("m", "oracle-mask", "query", [0.6, 0.6, 0.6, 0.6], seed=1),
+            queries("m", "oracle-mask", "query_displaced", [0.1, 0.1, 0.3, 0.3], seed=0),
+            queries("m", "oracle-mask", "query_light1", [0.1, 0.1, 0.1, 0.1], seed=2),
+            queries("only-query", "predicted", "query", [0.1]),
         ]
     )
-    d = robustness_drops(b).set_index(["Method", "Track"])
+    d = robustness_drops(q).set_index(["Method", "Track"])
     assert list(d.index) == [("m", "predicted"), ("m", "oracle-mask")]  # a method run on the query split only has none
-    assert d.loc[("m", "predicted"), "query"] == "40.0 / 30.0"
-    assert d.loc[("m", "predicted"), "query_light4"] == "-4.5 / +0.0"
+    assert d.loc[("m", "predicted"), "query"] == "75.0 / 50.0"
+    assert d.loc[("m", "predicted"), "query_light4"] == "+0.0 / -25.0"
     assert d.loc[("m", "predicted"), "query_displaced"] == "-"
-    assert d.loc[("m", "oracle-mask"), "query_displaced"] == "+1.0 / -1.0 (over 1 seed(s))"  # query pooled 3 seeds
-    assert "query_light1" not in d.columns  # no method ran it
+    assert d.loc[("m", "oracle-mask"), "query"] == "50.0 / 50.0"  # both seeds
+    assert d.loc[("m", "oracle-mask"), "query_displaced"] == "+0.0 / -50.0"  # against seed 0 alone
+    assert d.loc[("m", "oracle-mask"), "query_light1"] == "+50.0 / +50.0 (query split over seed(s) [0, 1])"  # no seed 2
+    assert "query_light2" not in d.columns  # no method ran it
 
 
 def test_provenance_names_one_commit_or_each() -> None:
-    one = rows("m", "predicted", {"query": (1.0, 1.0)}, {})
-    assert provenance(one) == "Every row comes from commit abc."
-    two = pd.concat([one, one.assign(git_commit="def")])
+    assert provenance(pd.DataFrame({"git_commit": ["abc", "abc"]})) == "Every row comes from commit abc."
+    two = pd.DataFrame({"git_commit": ["def", "abc"]})
     assert provenance(two) == "Rows from 2 commits (see the Commit column): abc, def."
 
 

@@ -34,6 +34,7 @@ from openreloc_bench.harness.leaderboard.rows import (
     recorded_tracks,
     robustness_drops,
 )
+from openreloc_bench.harness.leaderboard.verdict import ABLATIONS
 from openreloc_bench.harness.tables import build_tables, pool_seeds
 from openreloc_bench.tracks import MASK_FREE
 
@@ -46,7 +47,10 @@ def write_leaderboard(results: list[Path], out: Path, data: Path | None = None, 
     for r in results:
         paths.check_output(out, [r], "--out")
     scenes, suite = build_tables(q, load_maps(results))
-    b = board(suite)
+    # The csv keeps every row; pages and plots compare methods, and a method's ablation variants, parts of
+    # it, have their own table (``ablations_<track>.md``, written by ``eval --ablations``).
+    q, scenes, shown = (t[~t["method"].isin(ABLATIONS)] for t in (q, scenes, suite))
+    b = board(shown)
     out.mkdir(parents=True, exist_ok=True)
     plots_dir = out / "plots"
     plots_dir.mkdir(exist_ok=True)
@@ -60,8 +64,8 @@ def write_leaderboard(results: list[Path], out: Path, data: Path | None = None, 
     plot_cumulative(q, "r_err_deg", 20.0, "rotation error [°]", plots[1], colors)
     plot_scene_recall(scenes, plots[2], colors)
     plots.append(plots_dir / "recall_vs_map_size.png")
-    plot_recall_vs_map_size(suite, plots[-1], colors)
-    if plot_recall_vs_lighting(suite, plots_dir / "recall_vs_lighting.png", colors):
+    plot_recall_vs_map_size(shown, plots[-1], colors)
+    if plot_recall_vs_lighting(shown, plots_dir / "recall_vs_lighting.png", colors):
         plots.append(plots_dir / "recall_vs_lighting.png")
     for scene in sorted(q.loc[q["split"] == "query", "scene"].unique()):
         plots.append(plots_dir / f"topdown_{scene}.png")

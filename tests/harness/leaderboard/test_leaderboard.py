@@ -43,3 +43,15 @@ def test_boards_name_the_data_version_they_score(tmp_path: Path) -> None:
     )
     assert data_versions(q.assign(data_version=[1, 2, 2])) == "data v1 + v2"
     assert data_versions(q) == "data v2"
+
+
+def test_boards_keep_ablation_variants_in_the_csv_only(tmp_path: Path) -> None:
+    out = tmp_path / "board"
+    write_leaderboard(
+        [results_dir(tmp_path / "full", "openreloc"), results_dir(tmp_path / "abl", "openreloc+no_refine")], out
+    )
+    assert set(pd.read_csv(out / "leaderboard.csv")["method"]) == {"openreloc", "openreloc+no_refine"}
+    for page in ("leaderboard.md", "index.html"):
+        text = (out / page).read_text()
+        assert "openreloc+no_refine" not in text and "openreloc" in text
+    assert set(pd.read_csv(out / "difficulty.csv")["method"]) == {"openreloc"}

@@ -16,6 +16,8 @@ from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from contextlib import contextmanager
 
+from openreloc_bench.data import io
+
 
 def exit_quietly_on_interrupt() -> None:
     """In a child whose parent waits on it alone (a map builder, a query server): end silently on Ctrl-C.
@@ -75,11 +77,7 @@ def exit_with(parent_pid: int, poll_s: float = 1.0) -> None:
     def watch() -> None:
         while True:
             time.sleep(poll_s)
-            try:
-                os.kill(parent_pid, 0)
-            except ProcessLookupError:
+            if not io.process_alive(parent_pid):
                 os._exit(1)
-            except PermissionError:  # the pid exists (reused by another user's process): keep polling
-                pass
 
     threading.Thread(target=watch, name="exit-with-parent", daemon=True).start()

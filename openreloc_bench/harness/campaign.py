@@ -375,16 +375,15 @@ def render(cfg: CampaignConfig, ledger: Ledger, say: Callable[[str], None]) -> N
     steps = plan_steps(cfg.plan)
     pending = [s.key for s in steps if not ledger.done(s)]
     rows = pd.concat(summaries) if summaries else pd.DataFrame()
-    named = {"suites": cfg.plan.suites, "tracks": cfg.plan.tracks, "methods": cfg.plan.methods}
     text = campaign_page.campaign_page(
-        ledger.data, rows, pending, STAGES, cfg.plan.estimate_h, named, left_text(remaining_s(steps, ledger))
+        ledger.data, rows, pending, STAGES, cfg.plan, left_text(remaining_s(steps, ledger))
     )
     io.atomic_write_text(cfg.out / "campaign.md", text)
     say(text.split("\n## Summary")[0].rstrip())
     if not rows.empty:
         for readme in cfg.verdict_into:
             block = campaign_page.verdict_block(
-                rows, named, cfg.out.resolve(), readme, ledger.data["commit"], len(pending)
+                rows, cfg.plan, cfg.out.resolve(), readme, ledger.data["commit"], len(pending)
             )
             campaign_page.write_verdict(readme, block)
             say(f"verdict written into {readme}")

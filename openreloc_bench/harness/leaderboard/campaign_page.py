@@ -7,16 +7,26 @@ from __future__ import annotations
 import os
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import pandas as pd
 
 from openreloc_bench.data import io
 from openreloc_bench.errors import ConfigError
-from openreloc_bench.harness.leaderboard.rows import HEADLINE_SPLIT
 from openreloc_bench.harness.leaderboard.verdict import verdict, verdict_lead
 from openreloc_bench.harness.tables import md_table
 from openreloc_bench.tracks import MASK_FREE
+
+
+class PagePlan(Protocol):
+    """What the page reads of a plan (``harness.campaign.CampaignPlan``, which imports this module)."""
+
+    suites: list[str]
+    methods: list[str]
+    tracks: list[str]
+    splits: list[str]
+    estimate_h: dict[str, float]
+
 
 VERDICT_BEGIN = "<!-- verdict: written by `openreloc-bench campaign`; edits between these markers are replaced -->"
 VERDICT_END = "<!-- /verdict -->"
@@ -28,14 +38,12 @@ def timings(steps: dict[str, dict[str, Any]]) -> pd.DataFrame:
     return pd.DataFrame(rows, columns=["step", "stage", "wall_s"]).sort_values("wall_s", ascending=False)
 
 
-def summary_table(
-    suite_rows: pd.DataFrame, suites: Sequence[str], tracks: Sequence[str], methods: Sequence[str]
-) -> list[str]:
-    """R@50cm / R@25cm on the headline split of every method (rows) on every suite (columns), per track in
-    the plan's order (mask-free methods last): markdown lines."""
-    head = suite_rows[(suite_rows["split"] == HEADLINE_SPLIT) & suite_rows["method"].isin(methods)]
-    shown = [s for s in suites if s in set(head["suite"])]
-    order = {t: k for k, t in enumerate([*tracks, MASK_FREE])}
+def summary_table(suite_rows: pd.DataFrame, plan: PagePlan) -> list[str]:
+    """R@50cm / R@25cm on the plan's headline split of every method (rows) on every suite (columns), per
+    track in the plan's order (mask-free methods last): markdown lines."""
+    head = suite_rows[(suite_rows["split"] == plan.splits[0]) & suite_rows["method"].isin(plan.methods)]
+    shown = [s for s in plan.suites if s in set(head["suite"])]
+    order = {t: k for k, t in enumerate([*plan.tracks, MASK_FREE])}
     head = head.assign(_rank=head["track"].map(lambda x: order.get(x, len(order))))
     rows = []
     for (method, track), g in head.sort_values(["_rank", "method"]).groupby(["method", "track"], sort=False):
@@ -49,13 +57,13 @@ def campaign_page(
     suite_rows: pd.DataFrame,
     pending: list[str],
     stages: Sequence[str],
-    estimate_h: dict[str, float],
-    plan: dict[str, Sequence[str]],
+    plan: PagePlan,
     left: str = "",
 ) -> str:
     """``campaign.md`` from the campaign's record (``campaign.json``: its code version and finished steps),
-    the boards' rows (``suite`` column added), the steps still to run (``left``: about how long they take),
-    the plan's ``estimate_h`` per stage and its ``suites``, ``tracks`` and ``methods``."""
+    the boards' rows (``suite`` column added), the steps still to run (``left``: about how long they take)
+    and the plan (its ``estimate_h`` per stage, its suites, tracks, methods and headline split)."""
+    estimate_h = plan.estimate_h
     t = timings(record["steps"])
     total = t["wall_s"].sum()
     generated = int((t["stage"] == "generate").sum())  # one per suite, outside the plan's numbered steps
@@ -83,26 +91,25 @@ def campaign_page(
     if pending:
         lines += ["", "Still to run:", ""] + [f"- `{p}`" for p in pending]
     if not suite_rows.empty:
-        lines += ["", f"## Summary: R@50cm / R@25cm [%] on the {HEADLINE_SPLIT} split", ""]
-        lines += summary_table(suite_rows, plan["suites"], plan["tracks"], plan["methods"])
+        lines += ["", f"## Summary: R@50cm / R@25cm [%] on the {plan.splits[0]} split", ""]
+        lines += summary_table(suite_rows, plan)
     return "\n".join(lines) + "\n"
 
 
-def verdict_block(
-    suite_rows: pd.DataFrame, plan: dict[str, Sequence[str]], boards: Path, into: Path, commit: str, pending: int
-) -> str:
+def verdict_block(suite_rows: pd.DataFrame, plan: PagePlan, boards: Path, into: Path, commit: str, pending: int) -> str:
     """The verdict table for the README ``into``: each suite's verdict line, linked to its board (under
     ``boards``), and the summary table; the code version and, for an unfinished campaign, how many steps
     are left."""
     state = f"; {pending} step(s) of the plan still to run" if pending else ""
-    lines = [VERDICT_BEGIN, f"**{verdict_lead()}**, code version `{commit[:12]}`{state}:", ""]
-    for suite in plan["suites"]:
+    split = plan.splits[0]
+    lines = [VERDICT_BEGIN, f"**{verdict_lead(split)}**, code version `{commit[:12]}`{state}:", ""]
+    for suite in plan.suites:
         rows = suite_rows[suite_rows["suite"] == suite]
         if not rows.empty:
             link = os.path.relpath(boards / suite / "leaderboard.md", into.resolve().parent)
-            lines.append(f"- **[{suite}]({link})**: {verdict(rows)}")
+            lines.append(f"- **[{suite}]({link})**: {verdict(rows, split)}")
     lines += ["", "R@50cm / R@25cm [%]:", ""]
-    lines += summary_table(suite_rows, plan["suites"], plan["tracks"], plan["methods"])
+    lines += summary_table(suite_rows, plan)
     return "\n".join([*lines, VERDICT_END])
 
 

@@ -6,7 +6,8 @@ scene's content (it is recorded in ``scene.json``).
 
 Seeds come in three disjoint ranges, so that no benchmark scene is ever trained on or used to choose a
 model: benchmark suites use seeds below :data:`TRAINING_SEED_MIN`; seeds from it up to
-:data:`VALIDATION_SEED_MIN` are reserved for scenes that train encoders (object-crop training); seeds
+:data:`VALIDATION_SEED_MIN` are reserved for the scenes that train models (the encoder, the segmenter and
+the merger, each on its own part of the range); seeds
 from :data:`VALIDATION_SEED_MIN` on belong to validation suites (``purpose: validation``), on which
 models and recipes are selected.
 """
@@ -33,8 +34,8 @@ gen3: benchmark data v2 (:data:`~openreloc_bench.data.scene.DATA_VERSION`): surf
 periodicity, the ``query_near`` split, ``difficulty.csv``."""
 
 TRAINING_SEED_MIN = 1_000_000
-"""Seeds >= this are reserved for encoder TRAINING scenes (below :data:`VALIDATION_SEED_MIN`); benchmark
-suites reject them."""
+"""Seeds >= this are reserved for TRAINING scenes (below :data:`VALIDATION_SEED_MIN`; the encoder's,
+the segmenter's and the merger's); benchmark suites reject them."""
 
 VALIDATION_SEED_MIN = 10_000_000
 """Seeds >= this are for VALIDATION suites only: selecting encoder weights, recipes or thresholds by

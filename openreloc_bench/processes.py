@@ -16,6 +16,8 @@ from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from contextlib import contextmanager
 
+from tqdm import tqdm
+
 from openreloc_bench.data import io
 
 
@@ -23,13 +25,25 @@ def exit_quietly_on_interrupt() -> None:
     """In a child whose parent waits on it alone (a map builder, a query server): end silently on Ctrl-C.
     What it left half-written is a temp file that the next (resumed) run removes."""
     signal.signal(signal.SIGINT, lambda signum, frame: os._exit(128 + signum))
+    bars_on_a_thread_lock()
 
 
 def pool_worker(parent_pid: int) -> None:
     """Initializer of a process pool's workers: ignore Ctrl-C, which the parent handles by stopping them
     (:func:`workers_stopped_on_interrupt`), and exit with the parent (:func:`exit_with`)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    bars_on_a_thread_lock()
     exit_with(parent_pid)
+
+
+def bars_on_a_thread_lock() -> None:
+    """In a child that may end by ``os._exit`` or be killed: its progress bars lock with a thread lock.
+
+    tqdm's default is a multiprocessing lock, a named semaphore that such an end leaves to the resource
+    tracker, which then warns of a leak under the run's "interrupted". The lock is not shared with other
+    processes here anyway (children start by spawn or from the fork server), so a thread lock guards the
+    same writes."""
+    tqdm.set_lock(threading.RLock())
 
 
 @contextmanager

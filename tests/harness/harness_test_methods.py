@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 from scipy.spatial.transform import Rotation
+from tqdm import tqdm
 
 from openreloc_bench import geometry, methods
 from openreloc_bench.data import io
@@ -170,7 +171,18 @@ def difficulty_scene(root: Path, name: str, rows: dict[str, list]) -> Path:
     return path
 
 
+def napping_map_build(flag: str) -> dict[str, Any]:
+    """A map build that touches ``flag`` inside its (silent) progress bar, then sleeps for two minutes
+    (Ctrl-C tests)."""
+    for _ in tqdm(range(1), disable=True):
+        Path(flag).touch()
+        time.sleep(120)
+    return {}
+
+
 def nap(seconds: float) -> int:
-    """A pool job that sleeps, then returns its worker's pid (executor tests)."""
-    time.sleep(seconds)
+    """A pool job that sleeps inside a (silent) progress bar, as map builds do, then returns its worker's
+    pid (executor tests)."""
+    for _ in tqdm(range(1), disable=True):
+        time.sleep(seconds)
     return os.getpid()

@@ -4,6 +4,7 @@ at, and the evaluation goes on."""
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
 import time
@@ -110,3 +111,34 @@ def test_a_map_process_that_answered_exits_by_itself(data_dir: Path, tmp_path: P
     )
     assert proc.returncode == 0, proc.stderr
     assert "leaked semaphore" not in proc.stderr
+
+
+def test_ctrl_c_during_a_map_build_ends_in_one_line(tmp_path: Path) -> None:
+    """SIGINT to the process group while the map's child is in its progress bar: the child ends silently
+    and leaves no semaphore of its bars to the resource tracker (which warned of a leak under the
+    parent's one line)."""
+    flag = tmp_path / "building"
+    script = (
+        "import sys; sys.path.insert(0, sys.argv[1])\n"
+        "from harness_test_methods import napping_map_build\n"
+        "from openreloc_bench.harness.isolation import build_map_in_child\n"
+        "try:\n"
+        "    build_map_in_child(napping_map_build, sys.argv[2], timeout_s=300.0)\n"
+        "except KeyboardInterrupt:\n"
+        "    sys.exit('interrupted')\n"
+    )
+    proc = subprocess.Popen(
+        [sys.executable, "-c", script, str(Path(__file__).parent), str(flag)],
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,  # its own process group, so the signal reaches this test's processes only
+    )
+    try:
+        deadline = time.monotonic() + 60
+        while not flag.exists() and time.monotonic() < deadline:
+            time.sleep(0.1)
+        os.killpg(proc.pid, signal.SIGINT)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        proc.kill()
+    assert proc.returncode == 1 and err == "interrupted\n", err

@@ -58,9 +58,20 @@ Opener = Callable[[Job], tuple[Callable[[int], Outcome], float]]
 loading took."""
 
 
-def _serve(conn: Any, open_queries: Opener, job: Any) -> None:
-    """Query-server child: load the map once, then answer query indices until told to stop."""
+def _serve(conn: Any, open_queries: Opener, job: Any, parent_pid: int) -> None:
+    """Query-server child: load the map once, then answer query indices until told to stop.
+
+    It ends with its parent (a pool worker its run stopped): silently, also when the parent went while
+    the map was loading and the pipe is broken by the time it answers."""
     exit_quietly_on_interrupt()
+    exit_with(parent_pid)
+    try:
+        _answer_queries(conn, open_queries, job)
+    except (BrokenPipeError, ConnectionResetError, EOFError):
+        os._exit(1)
+
+
+def _answer_queries(conn: Any, open_queries: Opener, job: Any) -> None:
     try:
         answer, load_s = open_queries(job)
     except Exception as e:  # noqa: BLE001 -- reported by the parent as this job's one-line error
@@ -92,7 +103,7 @@ class QueryServer:
     def _start(self) -> None:
         ctx = mp_context()
         self._conn, child = ctx.Pipe()
-        self._proc = ctx.Process(target=_serve, args=(child, self.open_queries, self.job), daemon=True)
+        self._proc = ctx.Process(target=_serve, args=(child, self.open_queries, self.job, os.getpid()), daemon=True)
         self._proc.start()
         child.close()
         self.restarts += 1

@@ -180,6 +180,14 @@ def napping_map_build(flag: str) -> dict[str, Any]:
     return {}
 
 
+def open_after_a_nap(flag: str) -> tuple[Any, float]:
+    """A query opener that touches ``flag``, then loads for two seconds (tests of a parent that goes
+    while its query server loads)."""
+    Path(flag).touch()
+    time.sleep(2)
+    return (lambda i: None), 2.0
+
+
 def nap(seconds: float) -> int:
     """A pool job that sleeps inside a (silent) progress bar, as map builds do, then returns its worker's
     pid (executor tests)."""

@@ -142,3 +142,29 @@ def test_ctrl_c_during_a_map_build_ends_in_one_line(tmp_path: Path) -> None:
     finally:
         proc.kill()
     assert proc.returncode == 1 and err == "interrupted\n", err
+
+
+def test_a_query_server_whose_parent_went_during_loading_ends_silently(tmp_path: Path) -> None:
+    """The run stops a pool worker while its query server loads the map: the server, orphaned, ends
+    without a traceback (it printed a BrokenPipeError when it answered "ready" to nobody)."""
+    flag = tmp_path / "loading"
+    script = (
+        "import os, sys; sys.path.insert(0, sys.argv[1])\n"
+        "from harness_test_methods import open_after_a_nap\n"
+        "from openreloc_bench.harness.isolation import QueryServer\n"
+        "QueryServer(open_after_a_nap, sys.argv[2], timeout_s=60.0, map_timeout_s=60.0).ask(0, 'q/0')\n"
+    )
+    proc = subprocess.Popen(
+        [sys.executable, "-c", script, str(Path(__file__).parent), str(flag)],
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        deadline = time.monotonic() + 60
+        while not flag.exists() and time.monotonic() < deadline:
+            time.sleep(0.1)
+        proc.kill()  # as a run stops its pool workers
+        _, err = proc.communicate(timeout=60)  # stderr ends when every process holding it has ended
+    finally:
+        proc.kill()
+    assert flag.exists() and err == "", err

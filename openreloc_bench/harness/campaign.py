@@ -30,7 +30,7 @@ from openreloc_bench.harness import cache, runner
 from openreloc_bench.harness.ablations import ABLATED_METHOD
 from openreloc_bench.harness.evaluation import tabulate
 from openreloc_bench.harness.suites import ensure_suite_scenes
-from openreloc_bench.methods import uses_masks
+from openreloc_bench.methods import recorded_track, uses_masks
 from openreloc_bench.tracks import TRACKS
 
 STAGES = ("headline", "robustness", "seeds", "ablations")
@@ -315,13 +315,28 @@ def new_jobs(steps: list[Step]) -> list[int]:
     return counts
 
 
+def new_maps(steps: list[Step]) -> list[int]:
+    """How many map configs (:func:`cache.map_key`, each one map per scene) each step builds that no step
+    before it does: the seeds stage builds new maps only for methods whose map depends on the seed (a
+    trained pose regressor), and the ablations of the query stages share the full method's map."""
+    seen: set[tuple[str, str]] = set()
+    counts = []
+    for s in steps:
+        runs = runner.seeded_runs(runner.variant_runs([s.method], {}, s.ablations), list(s.seeds))
+        keys = {(s.suite, cache.map_key(m, recorded_track(m, s.track))) for _, m in runs} - seen
+        seen |= keys
+        counts.append(len(keys))
+    return counts
+
+
 def remaining_s(steps: list[Step], ledger: Ledger) -> float | None:
-    """About how long the unfinished steps take at the pace of the finished ones: query time per new run,
-    plus map-building time for the steps that build maps (the headline and the ablations), each taken
-    from the same method on the same suite, else any method on that suite, else any step. None before a
-    step has finished. Records without ``maps_s`` (written before it existed) are left out: they cannot
-    tell map time from query time, and pacing the seeds stage on the headline's map time overshoots."""
+    """About how long the unfinished steps take at the pace of the finished ones: query time per new run
+    (:func:`new_jobs`) plus map-building time per new map config (:func:`new_maps`), each taken from the
+    same method on the same suite, else any method on that suite, else any step. None before a step has
+    finished. Records without ``maps_s`` (written before it existed) are left out: they cannot tell map
+    time from query time."""
     jobs = dict(zip([s.key for s in steps], new_jobs(steps), strict=True))
+    maps = dict(zip([s.key for s in steps], new_maps(steps), strict=True))
     recs = ledger.data["steps"]
     done = {s.key: (s, recs[s.key]) for s in steps if ledger.done(s) and "maps_s" in recs[s.key]}
     if not done:
@@ -341,8 +356,9 @@ def remaining_s(steps: list[Step], ledger: Ledger) -> float | None:
     for s in steps:
         if s.key not in done:
             total += jobs[s.key] * pace(s, lambda r: r["wall_s"] - r["maps_s"], lambda d, r: jobs[d.key])
-            if s.stage == "headline" or s.ablations:
-                total += pace(s, lambda r: r["maps_s"], lambda d, r: float(r.get("maps_built", 0) > 0))
+            total += maps[s.key] * pace(
+                s, lambda r: r["maps_s"], lambda d, r: maps[d.key] * (r.get("maps_built", 0) > 0)
+            )
     return total
 
 

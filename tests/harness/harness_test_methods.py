@@ -119,8 +119,18 @@ class MaskFreeOracle(NoisyOracle):
     uses_masks = False
 
 
+class SeededMapOracle(NoisyOracle):
+    """The same with a map that depends on the seed, as a trained pose regressor's does."""
+
+    name = "test-oracle-seeded-map"
+
+    def map_config(self) -> dict[str, Any]:
+        return {**super().map_config(), "seed": self.config.seed}
+
+
 methods.register("test-oracle", NoisyOracle)
 methods.register("test-oracle-mask-free", MaskFreeOracle)
+methods.register("test-oracle-seeded-map", SeededMapOracle)
 
 
 def make_scene(

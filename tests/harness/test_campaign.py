@@ -73,6 +73,16 @@ def test_each_step_counts_only_the_runs_no_earlier_step_made(plan: campaign.Camp
     assert campaign.new_jobs(campaign.plan_steps(plan)) == [1, 1, 1, 1, 1, 1, 1, 1, 11]
 
 
+def test_further_seeds_build_maps_only_where_the_map_depends_on_the_seed(plan: campaign.CampaignPlan) -> None:
+    plan.methods, plan.tracks, plan.splits = ["test-oracle", "test-oracle-seeded-map"], ["predicted"], ["query"]
+    steps = campaign.plan_steps(plan)
+    assert [s.key for s in steps][2:] == [
+        "seeds/tiny/predicted/test-oracle",
+        "seeds/tiny/predicted/test-oracle-seeded-map",
+    ]
+    assert campaign.new_maps(steps) == [1, 1, 0, 1]  # seed 1's map of the seeded-map method; seed 0's is built
+
+
 def test_time_left_comes_from_the_pace_of_like_steps(plan: campaign.CampaignPlan, tmp_path: Path) -> None:
     steps = campaign.plan_steps(plan)
     ledger = campaign.Ledger(tmp_path, "a" * 40)

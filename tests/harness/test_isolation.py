@@ -9,6 +9,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -113,6 +114,23 @@ def test_a_map_process_that_answered_exits_by_itself(data_dir: Path, tmp_path: P
     assert "leaked semaphore" not in proc.stderr
 
 
+def start_script(script: str, flag: Path, **popen: Any) -> subprocess.Popen[str]:
+    """``script`` in a new interpreter, given this folder (for ``harness_test_methods``) and ``flag``."""
+    return subprocess.Popen(
+        [sys.executable, "-c", script, str(Path(__file__).parent), str(flag)],
+        stderr=subprocess.PIPE,
+        text=True,
+        **popen,
+    )
+
+
+def wait_for(flag: Path, timeout_s: float = 60.0) -> None:
+    """Until the child writes ``flag`` (it is then where the test wants to stop it), at most ``timeout_s``."""
+    deadline = time.monotonic() + timeout_s
+    while not flag.exists() and time.monotonic() < deadline:
+        time.sleep(0.1)
+
+
 def test_ctrl_c_during_a_map_build_ends_in_one_line(tmp_path: Path) -> None:
     """SIGINT to the process group while the map's child is in its progress bar: the child ends silently
     and leaves no semaphore of its bars to the resource tracker (which warned of a leak under the
@@ -127,16 +145,9 @@ def test_ctrl_c_during_a_map_build_ends_in_one_line(tmp_path: Path) -> None:
         "except KeyboardInterrupt:\n"
         "    sys.exit('interrupted')\n"
     )
-    proc = subprocess.Popen(
-        [sys.executable, "-c", script, str(Path(__file__).parent), str(flag)],
-        stderr=subprocess.PIPE,
-        text=True,
-        start_new_session=True,  # its own process group, so the signal reaches this test's processes only
-    )
+    proc = start_script(script, flag, start_new_session=True)  # its own process group: the signal stays in it
     try:
-        deadline = time.monotonic() + 60
-        while not flag.exists() and time.monotonic() < deadline:
-            time.sleep(0.1)
+        wait_for(flag)
         os.killpg(proc.pid, signal.SIGINT)
         _, err = proc.communicate(timeout=60)
     finally:
@@ -154,15 +165,9 @@ def test_a_query_server_whose_parent_went_during_loading_ends_silently(tmp_path:
         "from openreloc_bench.harness.isolation import QueryServer\n"
         "QueryServer(open_after_a_nap, sys.argv[2], timeout_s=60.0, map_timeout_s=60.0).ask(0, 'q/0')\n"
     )
-    proc = subprocess.Popen(
-        [sys.executable, "-c", script, str(Path(__file__).parent), str(flag)],
-        stderr=subprocess.PIPE,
-        text=True,
-    )
+    proc = start_script(script, flag)
     try:
-        deadline = time.monotonic() + 60
-        while not flag.exists() and time.monotonic() < deadline:
-            time.sleep(0.1)
+        wait_for(flag)
         proc.kill()  # as a run stops its pool workers
         _, err = proc.communicate(timeout=60)  # stderr ends when every process holding it has ended
     finally:

@@ -206,7 +206,8 @@ class CampaignConfig:
 
 
 class Ledger:
-    """``WORK/campaign.json``: the campaign's code version, and each finished step with its wall time.
+    """``WORK/campaign.json``: the campaign's code version, and each finished step with its wall time
+    (``wall_s`` of the sitting that finished it, ``earlier_s`` of sittings that ended it mid-way).
 
     ``commit`` is the checkout's code version: a ledger begun at another is refused, since its rows and new
     ones would mix. ``None`` opens it whatever its commit, to read it only (``--list`` from another checkout).
@@ -231,6 +232,12 @@ class Ledger:
 
     def add(self, key: str, rec: dict[str, Any]) -> None:
         self.data["steps"][key] = rec
+        io.write_json(self.path, self.data)
+
+    def interrupted(self, key: str, seconds: float) -> None:
+        """Keep the wall time a step ran before a sitting ended it: its record counts it when it finishes."""
+        earlier = self.data.setdefault("interrupted_s", {})
+        earlier[key] = earlier.get(key, 0.0) + seconds
         io.write_json(self.path, self.data)
 
 
@@ -293,12 +300,19 @@ def _run_steps(cfg: CampaignConfig, ledger: Ledger, say: Callable[[str], None]) 
             track=step.track, executor=cfg.executor, workers=1 if serial else cfg.workers,
             ray_address=cfg.ray_address, resume=True, plugins=cfg.plan.plugins, seeds=list(step.seeds),
         )  # fmt: skip
-        report = runner.evaluate(ecfg)
+        t0 = time.perf_counter()
+        try:
+            report = runner.evaluate(ecfg)
+        except KeyboardInterrupt:
+            ledger.interrupted(step.key, time.perf_counter() - t0)
+            raise
         for err in report.errors:
             say(f"error: {err}")
         failed += bool(report.errors)
-        ledger.add(step.key, {"step": step.record(), "wall_s": report.wall_s, "errors": report.errors,
-                              "queries": report.queries, "maps_built": report.maps_built, "maps_s": report.maps_s})  # fmt: skip
+        earlier_s = ledger.data.get("interrupted_s", {}).pop(step.key, 0.0)  # sittings that ended mid-step
+        ledger.add(step.key, {"step": step.record(), "wall_s": report.wall_s, "earlier_s": earlier_s,
+                              "errors": report.errors, "queries": report.queries, "maps_built": report.maps_built,
+                              "maps_s": report.maps_s})  # fmt: skip
     return failed
 
 

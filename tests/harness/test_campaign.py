@@ -243,3 +243,24 @@ def test_a_readme_without_its_verdict_markers_is_refused_before_any_work(
     with pytest.raises(ConfigError, match="verdict-into"):
         campaign.run_campaign(config(plan, tmp_path, verdict_into=[readme]), lambda s: None)
     assert not (tmp_path / "work").exists() and readme.read_text() == content
+
+
+def test_a_step_a_sitting_ended_counts_its_earlier_time(
+    plan: campaign.CampaignPlan, tmp_path: Path, commit: list[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    plan.splits, plan.seeds, plan.methods, plan.tracks = ["query"], [0], ["nearest-frame"], ["predicted"]
+    key = "headline/tiny/predicted/nearest-frame"
+
+    def ended_by_the_sitting(cfg: runner.EvalConfig) -> runner.EvalReport:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(runner, "evaluate", ended_by_the_sitting)
+    with pytest.raises(KeyboardInterrupt):
+        campaign.run_campaign(config(plan, tmp_path), lambda s: None)
+    earlier = campaign.Ledger(tmp_path / "work", commit[0]).data["interrupted_s"][key]
+    assert earlier > 0
+    monkeypatch.setattr(runner, "evaluate", lambda cfg: runner.EvalReport(wall_s=30.0))
+    assert campaign.run_campaign(config(plan, tmp_path), lambda s: None) == 0
+    ledger = campaign.Ledger(tmp_path / "work", commit[0])
+    assert ledger.data["steps"][key]["earlier_s"] == earlier and not ledger.data["interrupted_s"]
+    assert campaign_page.timings(ledger.data["steps"]).set_index("step").loc[key, "wall_s"] == 30.0 + earlier

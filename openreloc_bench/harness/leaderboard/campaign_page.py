@@ -33,8 +33,12 @@ VERDICT_END = "<!-- /verdict -->"
 
 
 def timings(steps: dict[str, dict[str, Any]]) -> pd.DataFrame:
-    """Wall time of every recorded step (``campaign.json``'s ``steps``), longest first."""
-    rows = [{"step": key, "stage": key.split("/")[0], "wall_s": rec["wall_s"]} for key, rec in steps.items()]
+    """Wall time of every recorded step (``campaign.json``'s ``steps``), with the sittings that ended it
+    mid-way, longest first."""
+    rows = [
+        {"step": key, "stage": key.split("/")[0], "wall_s": rec["wall_s"] + rec.get("earlier_s", 0.0)}
+        for key, rec in steps.items()
+    ]
     return pd.DataFrame(rows, columns=["step", "stage", "wall_s"]).sort_values("wall_s", ascending=False)
 
 

@@ -126,8 +126,7 @@ def write_tables(
     write_frame(suite, tables_dir / "suite")
     if not seeds.empty:
         write_frame(seeds, tables_dir / "seeds")
-    pooled = scenes if seeds.empty else metric_table(pool_seeds(queries), SCENE_KEYS, maps)
-    for name, text in paper_tables(pooled).items():
+    for name, text in paper_tables(pool_seeds(queries), maps).items():
         io.atomic_write_text(tables_dir / f"{name}.md", text)
     return scenes, suite, seeds
 
@@ -179,27 +178,40 @@ def paper_table(scenes: pd.DataFrame, rows: list[tuple[str, dict[str, str]]], sc
     return "\n".join(md_table(header, body)) + "\n"
 
 
-def paper_tables(scenes: pd.DataFrame) -> dict[str, str]:
-    """The ablation table and one robustness table per (method, track), where their runs exist."""
+def on_shared_seeds(queries: pd.DataFrame) -> tuple[pd.DataFrame, str]:
+    """The queries of a table's rows (pooled, :func:`pool_seeds`) on the seeds every seeded row ran, and
+    those seeds as 'seeds 0, 1' ('' where no row is seeded): a row pooled over three seeds set against
+    one of a single seed would compare seed noise with the change."""
+    seeded = queries.dropna(subset=["seed"]) if "seed" in queries else queries.iloc[:0]
+    if seeded.empty:
+        return queries, ""
+    shared = sorted(set.intersection(*seeded.groupby(["method", "split"])["seed"].agg(set)))
+    if not shared:  # no seed in common: every row on its own seeds, as the leaderboard pools them
+        return queries, "seeds pooled per row"
+    kept = queries[queries["seed"].isna() | queries["seed"].isin(shared)]
+    return kept, f"seed{'s' if len(shared) > 1 else ''} {', '.join(f'{v:g}' for v in shared)}"
+
+
+def paper_tables(queries: pd.DataFrame, maps: pd.DataFrame) -> dict[str, str]:
+    """The ablation table and one robustness table per (method, track), where their runs exist, each over
+    the seeds all of its rows ran (:func:`on_shared_seeds`; ``queries`` pooled, :func:`pool_seeds`)."""
     out: dict[str, str] = {}
-    if scenes.empty:
-        return out
-    for track, t in scenes.groupby("track"):
-        names = sorted(t["scene"].unique())
-        labels = set(t["method"])
-        abl = [
-            (r.title, {"method": ablation_label(r), "split": "query"})
-            for r in (*ABLATION_ROWS, FULL_ROW)
-            if ablation_label(r) in labels
-        ]
-        if len(abl) > 1:
-            out[f"ablations_{track}"] = f"Ablations ({track} track), each cell @50cm / @25cm\n\n" + paper_table(
-                t, abl, names
-            )
+
+    def table(name: str, what: str, q: pd.DataFrame, rows: list[tuple[str, dict[str, str]]]) -> None:
+        kept, seeds = on_shared_seeds(q)
+        track = q["track"].iloc[0]
+        head = f"{what} ({track} track{f'; {seeds}' if seeds else ''}), each cell @50cm / @25cm"
+        out[name] = f"{head}\n\n" + paper_table(metric_table(kept, SCENE_KEYS, maps), rows, sorted(q["scene"].unique()))
+
+    for track, t in queries.groupby("track"):
+        labels = {ablation_label(r): r for r in (*ABLATION_ROWS, FULL_ROW) if ablation_label(r) in set(t["method"])}
+        if len(labels) > 1:
+            abl = t[t["method"].isin(list(labels)) & (t["split"] == "query")]
+            rows = [(r.title, {"method": label, "split": "query"}) for label, r in labels.items()]
+            table(f"ablations_{track}", "Ablations", abl, rows)
         for method, m in t.groupby("method"):
             rob = [(r.title, {"split": r.key}) for r in ROBUSTNESS_ROWS if r.key in set(m["split"])]
             if len(rob) > 1:
-                out[f"robustness_{method}_{track}"] = (
-                    f"Robustness of {method} ({track} track), each cell @50cm / @25cm\n\n" + paper_table(m, rob, names)
-                )
+                splits = [where["split"] for _, where in rob]
+                table(f"robustness_{method}_{track}", f"Robustness of {method}", m[m["split"].isin(splits)], rob)
     return out

@@ -55,9 +55,9 @@ def test_ablation_table_in_paper_layout() -> None:
             for s in ("a", "b")
         ]
     )
-    scenes, _ = build_tables(q, MAPS)
-    md = paper_tables(scenes)["ablations_oracle-mask"]
+    md = paper_tables(q, MAPS)["ablations_oracle-mask"]
     lines = md.splitlines()
+    assert lines[0] == "Ablations (oracle-mask track), each cell @50cm / @25cm"
     assert lines[2] == "| Setting | Recall[%] a | Recall[%] b | MTE[m] a | MTE[m] b | MRE[°] a | MRE[°] b |"
     assert lines[4].startswith("| #1 w/o Refine Stage | 50 / 50 | 50 / 50 | 0.10 / 0.10 |")
     assert lines[-1] == "| Ours Full | 100 / 50 | 100 / 50 | 0.20 / 0.10 | 0.20 / 0.10 | 1.5 / 1.0 | 1.5 / 1.0 |"
@@ -65,5 +65,19 @@ def test_ablation_table_in_paper_layout() -> None:
 
 def test_failed_cells_render_as_dash() -> None:
     q = pd.concat([queries("m", "a", s, [math.inf], [math.inf]) for s in ("query", "query_light1")])
-    md = paper_tables(build_tables(q, MAPS)[0])["robustness_m_oracle-mask"]
+    md = paper_tables(q, MAPS)["robustness_m_oracle-mask"]
     assert "| Lighting 1 | 0 / 0 | - / - | - / - |" in md
+
+
+def test_paper_tables_set_rows_on_the_seeds_they_share() -> None:
+    """The full method over seeds 0-2 (seed 0 right, the others wrong), its variant over seed 0 only: the
+    table compares both on seed 0, and says so."""
+    full = [
+        queries("openreloc", "a", "query", [0.1, 0.1] if s == 0 else [0.6, 0.6], [1, 1]).assign(seed=s)
+        for s in range(3)
+    ]
+    variant = queries("openreloc+no_refine", "a", "query", [0.1, 0.6], [1, 1]).assign(seed=0)
+    lines = paper_tables(pd.concat([*full, variant]), MAPS)["ablations_oracle-mask"].splitlines()
+    assert lines[0] == "Ablations (oracle-mask track; seed 0), each cell @50cm / @25cm"
+    assert lines[-1].startswith("| Ours Full | 100 / 100 |")  # seed 0 alone; pooled over 0-2 it reads 33 / 33
+    assert lines[-2].startswith("| #1 w/o Refine Stage | 50 / 50 |")

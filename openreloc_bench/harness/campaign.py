@@ -13,7 +13,6 @@ run that spans several sittings are committed as its steps finish.
 from __future__ import annotations
 
 import math
-import shutil
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
@@ -395,8 +394,6 @@ def render(cfg: CampaignConfig, ledger: Ledger, say: Callable[[str], None]) -> N
         board = cfg.out / suite
         card = Path(cfg.plan.card_dir) / f"{suite}.md"
         write_leaderboard([results], board, cfg.data, card if card.is_file() else None)
-        for abl in sorted((results / "tables").glob("ablations_*.md")):
-            shutil.copyfile(abl, board / abl.name)
         summaries.append(pd.read_csv(board / "leaderboard.csv").assign(suite=suite))
         if cfg.screenshot and browser.available():
             browser.screenshot(board / "index.html", board / "screenshot.png")

@@ -10,6 +10,7 @@ each difficulty axis, as plots and as numbers (``difficulty.csv``). The rows (:m
 from __future__ import annotations
 
 import os
+import shutil
 from collections.abc import Callable
 from pathlib import Path
 
@@ -84,18 +85,34 @@ def write_leaderboard(results: list[Path], out: Path, data: Path | None = None, 
     io.atomic_write_text(out / "leaderboard.csv", suite.to_csv(index=False))
     io.atomic_write_text(out / "difficulty.csv", binned.to_csv(index=False))
     drops = robustness_drops(q)
-    io.atomic_write_text(out / "leaderboard.md", to_markdown(b, scenes, versions, rel, card_link, drops))
+    ablations = copy_ablation_tables(results, out)
+    abl = [p.name for p in ablations]
+    io.atomic_write_text(out / "leaderboard.md", to_markdown(b, scenes, versions, rel, card_link, drops, abl))
     io.atomic_write_text(
-        out / "index.html", to_html(b, [str(p.relative_to(out)) for p in plots], versions, rel, card_link, drops)
+        out / "index.html",
+        to_html(b, [str(p.relative_to(out)) for p in plots], versions, rel, card_link, drops, abl),
     )
     return [
         out / "leaderboard.md",
         out / "leaderboard.csv",
         out / "difficulty.csv",
         out / "index.html",
+        *ablations,
         *plots,
         *difficulty_plots,
     ]
+
+
+def copy_ablation_tables(results: list[Path], out: Path) -> list[Path]:
+    """The ablation tables ``eval --ablations`` wrote (``tables/ablations_<track>.md``), copied beside the
+    board, one per track: the first results folder's where several have one."""
+    found: dict[str, Path] = {}
+    for r in results:
+        for table in sorted((r / "tables").glob("ablations_*.md")):
+            found.setdefault(table.name, table)
+    for name, table in found.items():
+        shutil.copyfile(table, out / name)
+    return [out / name for name in found]
 
 
 def main(results: list[Path], out: Path, data: Path | None = None, say: Callable[[str], None] = print) -> list[Path]:

@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import html
 from collections.abc import Sequence
+from pathlib import Path
 
 import pandas as pd
 
+from openreloc_bench.harness.ablations import ABLATED_METHOD
 from openreloc_bench.harness.leaderboard.rows import (
     BOARD_COLUMNS,
     ROBUSTNESS_TITLE,
@@ -44,6 +46,11 @@ DIFFICULTY_TEXT = (
 )
 
 
+def _ablation_links(ablations: Sequence[str]) -> list[tuple[str, str]]:
+    """(track, path) of each ablation table (``ablations_<track>.md``, a path relative to the board)."""
+    return [(Path(p).stem.removeprefix("ablations_"), p) for p in ablations]
+
+
 def to_markdown(
     b: pd.DataFrame,
     scenes: pd.DataFrame,
@@ -51,11 +58,12 @@ def to_markdown(
     difficulty_plots: Sequence[str] = (),
     card: str = "",
     drops: pd.DataFrame | None = None,
+    ablations: Sequence[str] = (),
 ) -> str:
-    """The board: its verdict (:func:`verdict`), a link to the data's ``card`` (a path relative to the
-    board, where there is one), one table per track (the predicted track's first), the robustness table
-    (``drops``: :func:`~.rows.robustness_drops`), per-scene tables, map sizes and the recall-vs-difficulty
-    plots (``difficulty_plots``, paths relative to the board)."""
+    """The board: its verdict (:func:`verdict`), links to the data's ``card`` and to the ``ablations``
+    tables (paths relative to the board, where there are some), one table per track (the predicted
+    track's first), the robustness table (``drops``: :func:`~.rows.robustness_drops`), per-scene tables,
+    map sizes and the recall-vs-difficulty plots (``difficulty_plots``, paths relative to the board)."""
     head = [BOARD_COLUMNS[c] for c in b.columns]
     lines = [
         f"# {_title(versions)}",
@@ -64,7 +72,9 @@ def to_markdown(
         "",
         "Recall = share of all queries (failures count); MTE/MRE = mean error of the queries within the threshold.",
         "",
-        provenance(b) + (f" The data: [its dataset card]({card})." if card else ""),
+        provenance(b)
+        + (f" The data: [its dataset card]({card})." if card else "")
+        + "".join(f" Ablations of {ABLATED_METHOD}, {t} track: [{p}]({p})." for t, p in _ablation_links(ablations)),
     ]
     for title, t in _by_track(b):
         lines += [
@@ -125,9 +135,11 @@ def to_html(
     difficulty_plots: Sequence[str] = (),
     card: str = "",
     drops: pd.DataFrame | None = None,
+    ablations: Sequence[str] = (),
 ) -> str:
-    """The sortable page: the board's verdict, a link to the data's ``card``, its tables, the robustness
-    table (``drops``), ``plots`` side by side and the recall-vs-difficulty plots full width."""
+    """The sortable page: the board's verdict, links to the data's ``card`` and the ``ablations`` tables,
+    its tables, the robustness table (``drops``), ``plots`` side by side and the recall-vs-difficulty
+    plots full width."""
     head = [BOARD_COLUMNS[c] for c in b.columns]
     tables = "".join(
         _html_table(title, head, [[format_cell(c, r[c]) for c in b.columns] for _, r in t.iterrows()])
@@ -143,6 +155,10 @@ def to_html(
             for p in difficulty_plots
         )
     card_link = f' The data: <a href="{html.escape(card)}">its dataset card</a>.' if card else ""
+    card_link += "".join(
+        f' Ablations of {ABLATED_METHOD}, {html.escape(t)} track: <a href="{html.escape(p)}">{html.escape(p)}</a>.'
+        for t, p in _ablation_links(ablations)
+    )
     return f"""<!doctype html>
 <html lang="en"><head><meta charset="utf-8"><title>{html.escape(_title(versions))}</title>
 <style>

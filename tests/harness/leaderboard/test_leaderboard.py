@@ -45,13 +45,16 @@ def test_boards_name_the_data_version_they_score(tmp_path: Path) -> None:
     assert data_versions(q) == "data v2"
 
 
-def test_boards_keep_ablation_variants_in_the_csv_only(tmp_path: Path) -> None:
+def test_boards_keep_ablation_variants_in_the_csv_and_link_their_table(tmp_path: Path) -> None:
     out = tmp_path / "board"
-    write_leaderboard(
-        [results_dir(tmp_path / "full", "openreloc"), results_dir(tmp_path / "abl", "openreloc+no_refine")], out
-    )
+    ablated = results_dir(tmp_path / "abl", "openreloc+no_refine")
+    (ablated / "tables" / "ablations_predicted.md").write_text("Ablations (predicted track; seed 0)\n")
+    files = write_leaderboard([results_dir(tmp_path / "full", "openreloc"), ablated], out)
     assert set(pd.read_csv(out / "leaderboard.csv")["method"]) == {"openreloc", "openreloc+no_refine"}
     for page in ("leaderboard.md", "index.html"):
         text = (out / page).read_text()
-        assert "openreloc+no_refine" not in text and "openreloc" in text
+        assert "openreloc+no_refine" not in text
+        assert "Ablations of openreloc, predicted track:" in text and "ablations_predicted.md" in text
     assert set(pd.read_csv(out / "difficulty.csv")["method"]) == {"openreloc"}
+    assert out / "ablations_predicted.md" in files
+    assert (out / "ablations_predicted.md").read_text() == "Ablations (predicted track; seed 0)\n"

@@ -29,11 +29,11 @@ from threadpoolctl import ThreadpoolController
 from torch import nn
 from torch.nn import functional as F
 
-from baselines.features import SiftConfig, extract_sift, root_sift
 from baselines.frame_retrieval import Vlad, VladConfig
 from openreloc_bench import config as cfglib
 from openreloc_bench.vision.base import l2_normalize
 from openreloc_bench.vision.learned_segment import torch_threads
+from openreloc_bench.vision.local_features import SiftConfig, extract_sift, root_sift
 from openreloc_bench.vision.offline import WEIGHTS_DIR, OfflineEncoder, load_tower, uint8_batch_to_tensor
 
 DESCRIPTORS = ("encoder-grid", "encoder-vlad", "sift-vlad")

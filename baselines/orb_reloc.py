@@ -40,13 +40,14 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
-from baselines.features import FeatureMap, Keypoints, OrbConfig, build_feature_map, extract_orb
+from baselines.features import FeatureMap, OrbConfig, build_feature_map, extract_orb
 from baselines.frame_retrieval import VocabularyConfig, VocabularyTree, hamming_matrix
 from openreloc_bench import config as cfglib
 from openreloc_bench import geometry
 from openreloc_bench.bars import tqdm
 from openreloc_bench.data.types import SceneSequence
 from openreloc_bench.methods import Failure, PoseEstimate, QueryFrame
+from openreloc_bench.vision.local_features import Keypoints
 
 MAP_FORMAT = "orb-reloc-map"
 MAP_VERSION = 1

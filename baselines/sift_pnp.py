@@ -20,12 +20,13 @@ from typing import Any
 import cv2
 import numpy as np
 
-from baselines.absolute_pose import AbsolutePoseConfig, estimate_absolute_pose
-from baselines.features import FeatureMap, SiftConfig, build_feature_map, extract_sift, root_sift
+from baselines.features import FeatureMap, build_feature_map
 from baselines.frame_retrieval import Vlad, VladConfig, top_k
 from openreloc_bench import config as cfglib
 from openreloc_bench.data.types import SceneSequence
 from openreloc_bench.methods import Failure, PoseEstimate, QueryFrame
+from openreloc_bench.vision.absolute_pose import AbsolutePoseConfig, estimate_absolute_pose
+from openreloc_bench.vision.local_features import SiftConfig, extract_sift, root_sift
 
 MAP_FORMAT = "sift-pnp-map"
 MAP_VERSION = 1

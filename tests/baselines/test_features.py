@@ -5,30 +5,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from baselines.features import (
-    FeatureMap,
-    Keypoints,
-    OrbConfig,
-    SiftConfig,
-    build_feature_map,
-    extract_orb,
-    extract_sift,
-    lift,
-    root_sift,
-)
+from baselines.features import FeatureMap, OrbConfig, build_feature_map, extract_orb
 from openreloc_bench import geometry
 from openreloc_bench.config import from_dict
 from openreloc_bench.data.scene import Scene
 from openreloc_bench.errors import ConfigError, DataError
-
-
-def test_sift_and_root_sift(scenes: tuple[Scene, Scene]) -> None:
-    frame = scenes[0].sequence("mapping")[0]
-    feats = extract_sift(frame.color, SiftConfig(max_keypoints=500))
-    assert 100 < len(feats) <= 500 and feats.descriptors.shape == (len(feats), 128)
-    assert feats.descriptors.dtype == np.uint8 and feats.octaves is None
-    r = root_sift(feats.descriptors)
-    assert np.allclose(np.linalg.norm(r, axis=1), 1.0, atol=1e-5)
+from openreloc_bench.vision.local_features import Keypoints, SiftConfig, extract_sift
 
 
 def test_orb_spreads_keypoints_over_levels_and_image(scenes: tuple[Scene, Scene]) -> None:
@@ -47,19 +29,6 @@ def test_orb_falls_back_to_the_low_threshold_in_dark_images(scenes: tuple[Scene,
     low = extract_orb(dark, OrbConfig(max_keypoints=400))
     high_only = extract_orb(dark, OrbConfig(max_keypoints=400, fast_threshold_min=20))
     assert len(low) > 2 * len(high_only)
-
-
-def test_lift_reprojects_and_rejects_depth_edges() -> None:
-    K = geometry.intrinsics_from_fov(64, 48, 60.0)
-    T_wc = geometry.look_at([1.0, -2.0, 1.0], [0.0, 0.0, 1.0])
-    depth = np.full((48, 64), 2.0, np.float32)
-    depth[:, 40:] = 3.0  # a depth edge at column 40
-    depth[5, 5] = 0.0  # a hole
-    xy = np.array([[20.3, 20.7], [39.6, 10.0], [5.0, 6.0], [50.0, 30.0]], np.float32)
-    points, valid = lift(xy, depth, K, T_wc, max_depth_step=0.05)
-    assert valid.tolist() == [True, False, False, True]
-    uv, z = geometry.project(K, T_wc, points[valid])
-    assert np.allclose(uv, xy[valid], atol=1e-3) and np.allclose(z, [2.0, 3.0], atol=1e-5)
 
 
 def test_feature_map_round_trip(tmp_path: Path) -> None:

@@ -3,10 +3,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from baselines.absolute_pose import AbsolutePoseConfig, estimate_absolute_pose
 from openreloc_bench import geometry
 from openreloc_bench.config import from_dict
 from openreloc_bench.errors import ConfigError
+from openreloc_bench.vision.absolute_pose import AbsolutePoseConfig, estimate_absolute_pose
 
 
 def test_recovers_the_pose_despite_outliers() -> None:

@@ -24,12 +24,14 @@ from typing import Any
 import cv2
 import numpy as np
 
-from openreloc_bench import geometry
 from openreloc_bench.bars import tqdm
 from openreloc_bench.data.scene import Scene
 from openreloc_bench.data.types import SceneSequence
+from openreloc_bench.errors import ConfigError
 from openreloc_bench.harness.cache import cached_map, map_key
 from openreloc_bench.harness.metrics import summarize
+from openreloc_bench.harness.pose_stages import map_summary, pool_stages, query_stages, summarize_stages
+from openreloc_bench.harness.query_picture import draw_query
 from openreloc_bench.methods import Failure, PoseEstimate, QueryFrame, create_method
 from openreloc_bench.openreloc.instance_eval import box_point_labels, boxed_objects
 from openreloc_bench.openreloc.map import ObjectMap
@@ -39,6 +41,7 @@ from openreloc_bench.vision.base import ObjectMask, Segmenter, label_image
 from openreloc_bench.vision.segmenter_training import frame_metrics
 from openreloc_bench.vision.segmenter_training import summarize as summarize_segments
 
+RECALLS = ("recall_50cm", "recall_25cm", "recall_25cm_5deg")
 MIN_OBJECT_SHARE = 0.01
 """Objects covering less of the image neither count nor penalise the segmentation scores."""
 BOUNDARY_TOLERANCE_PX = 2
@@ -58,6 +61,9 @@ class DiagnoseOptions:
     """Localize every query (else segmentation and map only: minutes less per scene)."""
     swap: bool = False
     """Predicted track: also localize with one side's masks swapped for the dataset's."""
+    pictures: int = 0
+    """Queries drawn per split (the farthest from the truth): segments, and the matched landmarks at
+    the estimated and the true pose; written under ``--out``."""
 
 
 def boundary_counts(pred: np.ndarray, truth: np.ndarray, tolerance: int) -> np.ndarray:
@@ -94,13 +100,15 @@ def segmentation_quality(seq: SceneSequence, segmenter: Segmenter, frames: int) 
     return {**summarize_segments(stats), "boundary_f": boundary_f(counts), "boundary_counts": counts.tolist()}
 
 
-class _TruthLabelledSegmenter(Segmenter):
-    """The method's segmenter, its masks labelled with the dataset object under most of their pixels
-    (``ObjectMask.instance_id``, which the method only copies into its diagnostics)."""
+class _WatchedSegmenter(Segmenter):
+    """The method's segmenter, its last masks kept (for pictures) and, where the truth is known, each
+    labelled with the dataset object under most of its pixels (``ObjectMask.instance_id``, which the
+    method only copies into its diagnostics)."""
 
     def __init__(self, inner: Segmenter):
         self.inner, self.truth = inner, None
         self.name = inner.name
+        self.last: list[ObjectMask] = []
 
     def segment(self, rgb: np.ndarray, instance: np.ndarray | None = None) -> list[ObjectMask]:
         masks = self.inner.segment(rgb, instance)
@@ -108,6 +116,7 @@ class _TruthLabelledSegmenter(Segmenter):
             for m in masks:
                 ids, n = np.unique(self.truth[m.mask], return_counts=True)
                 m.instance_id = int(ids[np.argmax(n)]) if len(ids) else None
+        self.last = masks
         return masks
 
 
@@ -122,41 +131,62 @@ def landmark_objects(m: ObjectMap, scene: Scene, margin: float) -> dict[int, int
 
 
 def localization_quality(
-    method: Any, map_dir: Path, scene: Scene, split: str, query_masks: str, progress: bool
+    method: Any,
+    map_dir: Path,
+    scene: Scene,
+    split: str,
+    query_masks: str,
+    progress: bool,
+    pictures: int = 0,
+    picture_dir: Path | None = None,
 ) -> dict[str, Any]:
-    """Recall and association precision of ``method`` over a split; ``query_masks``: 'dataset' hands
-    the method each query's instance image, 'predicted' does not."""
+    """Recall, the pose stages (:mod:`.pose_stages`) and, where the scene has instance labels, the
+    association precision of ``method`` over a split; ``query_masks``: 'dataset' hands the method each
+    query's instance image, 'predicted' does not. The ``pictures`` queries farthest from the truth are
+    drawn into ``picture_dir``."""
     method.load_map(map_dir)
-    owner = landmark_objects(method.map, scene, method.config.mapping.instances.gt_box_margin)
     seq = scene.sequence(split)
-    labelled = getattr(method, "segmenter", None)
-    if isinstance(labelled, Segmenter) and not isinstance(labelled, _TruthLabelledSegmenter):
-        method.segmenter = labelled = _TruthLabelledSegmenter(labelled)
-    t_err, r_err, correct, accepted = [], [], 0, 0
+    labelled = seq.has_instances and bool(scene.objects)
+    owner = landmark_objects(method.map, scene, method.config.mapping.instances.gt_box_margin) if labelled else {}
+    watched = getattr(method, "segmenter", None)
+    if isinstance(watched, Segmenter) and not isinstance(watched, _WatchedSegmenter):
+        method.segmenter = watched = _WatchedSegmenter(watched)
+    correct, accepted = 0, 0
+    stages, diags, estimates = [], [], []
     for i in tqdm(range(len(seq)), desc=f"{scene.name} {split} ({query_masks} masks)", disable=not progress):
         f = seq[i]
-        if isinstance(labelled, _TruthLabelledSegmenter):
-            labelled.truth = f.instance
+        if isinstance(watched, _WatchedSegmenter):
+            watched.truth = f.instance if labelled else None
         res = method.localize(QueryFrame(f.name, f.color, f.K, f.instance if query_masks == "dataset" else None))
         diag = res.diagnostics if isinstance(res, PoseEstimate | Failure) else {}
         for mt in diag.get("matches", []):
             if mt.get("query_instance") is not None:
                 accepted += 1
                 correct += int(owner.get(int(mt["landmark"]), 0) == mt["query_instance"] != 0)
-        if isinstance(res, PoseEstimate):
-            t, r = geometry.pose_errors(f.T_wc, res.T_wc)
-            t_err.append(float(t))
-            r_err.append(float(r))
-        else:
-            t_err.append(np.inf)
-            r_err.append(np.inf)
-    s = summarize(np.array(t_err), np.array(r_err))
+        estimate = res.T_wc if isinstance(res, PoseEstimate) else None
+        reason = res.reason if isinstance(res, Failure) else None
+        stages.append(query_stages(diag, estimate, f.T_wc, method.map, reason))
+        diags.append(diag)
+        estimates.append(estimate)
+    t_err = np.array([q.final[0] for q in stages])
+    if pictures and picture_dir is not None:  # the farthest estimates first, then the failures
+        for i in np.argsort(np.where(np.isfinite(t_err), -t_err, np.inf), kind="stable")[:pictures]:
+            f = seq[int(i)]
+            if query_masks == "dataset":
+                masks = method.gt_segmenter.segment(f.color, f.instance)
+            else:
+                masks = watched.inner.segment(f.color) if isinstance(watched, _WatchedSegmenter) else []
+            draw_query(f, masks, diags[i], estimates[i], method.map, picture_dir / f"{f.name.replace('/', '_')}.png")
+    s = summarize(t_err, np.array([q.final[1] for q in stages]))
     return {
         "queries": len(seq),
         "recall_50cm": s["recall_50cm"],
         "recall_25cm": s["recall_25cm"],
-        "association_precision": correct / accepted if accepted else float("nan"),
+        "recall_25cm_5deg": s["recall_25cm_5deg"],
+        "association_precision": correct / accepted if accepted else None,
         "accepted_matches": accepted,
+        "stages": summarize_stages(stages),
+        "per_query": [q.to_dict() for q in stages],
     }
 
 
@@ -170,23 +200,36 @@ def _map(scene: Scene, overrides: dict[str, Any], masks: str, work_dir: Path) ->
 
 
 def diagnose_scene(
-    scene_dir: Path, overrides: dict[str, Any], options: DiagnoseOptions, work_dir: Path, progress: bool = True
+    scene_dir: Path,
+    overrides: dict[str, Any],
+    options: DiagnoseOptions,
+    work_dir: Path,
+    progress: bool = True,
+    out_dir: Path | None = None,
 ) -> dict[str, Any]:
-    """Every stage's numbers for one scene (see the module docstring)."""
+    """Every stage's numbers for one scene (see the module docstring). A scene without instance images
+    (a real recording) gets the stages that need none: the map's landmarks and the pose stages."""
     scene = Scene(scene_dir)
+    labelled = all(scene.sequence(s).has_instances for s in ("mapping", *options.splits))
+    if options.track == ORACLE_MASK and not labelled:
+        raise ConfigError(f"{scene.name} has no instance images: diagnose it with --track {PREDICTED}")
+    if options.swap and not labelled:
+        raise ConfigError(f"--swap needs the dataset's instance images, which {scene.name} has not")
     masks = "predicted" if options.track == PREDICTED else "dataset"
     method, map_dir, stats = _map(scene, overrides, masks, work_dir)
     out: dict[str, Any] = {"scene": scene.name, "track": options.track, "map": stats.get("instance_quality") or {}}
-    out["map"]["landmarks"] = stats.get("landmarks")
     out["map"]["seconds"] = stats.get("timings_s", {}).get("total")
-    if options.track == PREDICTED:
+    out["landmarks"] = map_summary(ObjectMap.load(map_dir))
+    if options.track == PREDICTED and labelled:
         segmenter = create_segmenter(method.config.segmenter, **method.config.segmenter_options)
         out["segmentation"] = {
             split: segmentation_quality(scene.sequence(split), segmenter, options.frames) for split in options.splits
         }
     if options.localize:
+        pictures = out_dir / "pictures" / scene.name if out_dir is not None else None
         out["localization"] = {
-            split: localization_quality(method, map_dir, scene, split, masks, progress) for split in options.splits
+            split: localization_quality(method, map_dir, scene, split, masks, progress, options.pictures, pictures)
+            for split in options.splits
         }
     if options.swap and options.track == PREDICTED:
         other, other_dir, _ = _map(scene, overrides, "dataset", work_dir)
@@ -203,7 +246,7 @@ def diagnose_scene(
 
 def pool(rows: list[dict[str, Any]]) -> dict[str, Any]:
     """Scene rows pooled: map counts summed, segmentation and localization weighted by their sizes."""
-    maps = [r["map"] for r in rows if r["map"]]
+    maps = [r["map"] for r in rows if "n_pred" in r["map"]]
     out: dict[str, Any] = {"scenes": [r["scene"] for r in rows]}
     if maps:
         n_pred = sum(m["n_pred"] for m in maps)
@@ -245,14 +288,16 @@ def _pool_localization(parts: list[dict[str, dict[str, Any]]]) -> dict[str, dict
         acc = sum(p["accepted_matches"] for p in ps)
         out[split] = {
             "queries": n,
-            "recall_50cm": sum(p["recall_50cm"] * p["queries"] for p in ps) / max(n, 1),
-            "recall_25cm": sum(p["recall_25cm"] * p["queries"] for p in ps) / max(n, 1),
-            "association_precision": sum(
-                p["association_precision"] * p["accepted_matches"] for p in ps if p["accepted_matches"]
-            )
-            / max(acc, 1),
+            **{k: sum(p[k] * p["queries"] for p in ps) / max(n, 1) for k in RECALLS if all(k in p for p in ps)},
+            "association_precision": (
+                sum(p["association_precision"] * p["accepted_matches"] for p in ps if p["accepted_matches"]) / acc
+                if acc
+                else None
+            ),
             "accepted_matches": acc,
         }
+        if all("per_query" in p for p in ps):
+            out[split]["stages"] = pool_stages([p["per_query"] for p in ps])
     return out
 
 

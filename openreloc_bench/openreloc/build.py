@@ -111,7 +111,7 @@ def build_object_map(
         rfs = select_reference_frames(sightings, mapping_seq.poses, config.reference_frames)
     ids = sorted(set(int(i) for i in sightings.landmark))  # landmarks never seen well enough are dropped
     with timer("descriptors"):
-        desc, n_crops = compute_descriptors(mapping_seq, sightings, ids, encoder, config.descriptors, progress)
+        described = compute_descriptors(mapping_seq, sightings, ids, encoder, config.descriptors, progress)
     with timer("filtering"):
         invalid, freq = invalid_landmarks(rfs, ids, config.filtering, {i: rec.points[sets[i]] for i in ids})
     # ground-truth categories name oracle landmarks in explanations; a predicted map carries none
@@ -127,7 +127,7 @@ def build_object_map(
             box_min=pts.min(0).astype(np.float64),
             box_max=pts.max(0).astype(np.float64),
             center=pts.mean(0).astype(np.float64),
-            descriptor=desc[i],
+            descriptor=described.descriptors[i],
             valid=i not in invalid,
             category=categories.get(i),
             n_views=int((sightings.landmark == i).sum()),
@@ -144,7 +144,8 @@ def build_object_map(
         "landmarks_invalid": sorted(invalid),
         "invalid_categories": sorted({categories.get(i) or "?" for i in invalid}),
         "reference_frequency": {i: round(f, 4) for i, f in freq.items()},
-        "crops_per_landmark": n_crops,
+        "crops_per_landmark": described.crops,
+        "cross_view_recall": described.cross_view_recall,
         "instances_from": source,
         "instance_quality": quality,
         "graph_edges": graph.number_of_edges(),

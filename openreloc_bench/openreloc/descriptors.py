@@ -59,6 +59,20 @@ def top_views(sightings: Sightings, landmark: int, cfg: DescriptorConfig) -> np.
     return pool[order[: cfg.top_k]]
 
 
+@dataclass
+class LandmarkDescriptors:
+    """Every landmark's descriptor and how well its crops from different views agree."""
+
+    descriptors: dict[int, np.ndarray]
+    """Landmark -> unit descriptor."""
+    crops: dict[int, int]
+    """Landmark -> number of crops averaged."""
+    cross_view_recall: float | None
+    """Share of crops whose nearest descriptor is their own landmark's, that descriptor made of the
+    landmark's other crops (leave one out): how a new view of the object would be associated. Needs
+    no labels, so it measures the encoder on any recording; None when no landmark has two crops."""
+
+
 def compute_descriptors(
     seq: SceneSequence,
     sightings: Sightings,
@@ -66,8 +80,8 @@ def compute_descriptors(
     encoder: ImageTextEncoder,
     cfg: DescriptorConfig,
     progress: bool = True,
-) -> tuple[dict[int, np.ndarray], dict[int, int]]:
-    """(landmark -> unit descriptor, landmark -> number of crops used). Each frame is read once."""
+) -> LandmarkDescriptors:
+    """Each landmark's mean crop embedding; each frame is read once."""
     jobs: dict[int, list[tuple[int, np.ndarray]]] = defaultdict(list)  # frame -> [(landmark, box)]
     for lid in landmarks:
         for s in top_views(sightings, lid, cfg):
@@ -87,4 +101,26 @@ def compute_descriptors(
         rows = emb[owners_arr == lid]
         used[lid] = len(rows)
         out[lid] = l2_normalize(rows.mean(axis=0)) if len(rows) else np.zeros(encoder.dim, np.float32)
-    return out, used
+    return LandmarkDescriptors(out, used, cross_view_recall(emb, owners_arr, landmarks, out))
+
+
+def cross_view_recall(
+    emb: np.ndarray, owners: np.ndarray, landmarks: list[int], descriptors: dict[int, np.ndarray]
+) -> float | None:
+    """Leave-one-out recall@1 of crop embeddings ``emb`` (owned by ``owners``) against the landmark
+    descriptors (see :attr:`LandmarkDescriptors.cross_view_recall`)."""
+    counts = {lid: int((owners == lid).sum()) for lid in landmarks}
+    if not any(n >= 2 for n in counts.values()):
+        return None
+    ids = list(landmarks)
+    table = np.stack([descriptors[i] for i in ids])
+    sums = {lid: emb[owners == lid].sum(axis=0) for lid in ids if counts[lid] >= 2}
+    hits = total = 0
+    for k in np.flatnonzero(np.isin(owners, list(sums))):
+        lid = int(owners[k])
+        own = l2_normalize(sums[lid] - emb[k])  # the descriptor without this crop
+        sims = table @ emb[k]
+        sims[ids.index(lid)] = own @ emb[k]
+        hits += int(ids[int(np.argmax(sims))] == lid)
+        total += 1
+    return hits / total

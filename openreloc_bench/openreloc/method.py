@@ -618,6 +618,7 @@ def _match_diag(mt: Match, objects: list[QueryObject], m: ObjectMap) -> dict[str
         "landmark": mt.landmark,
         "category": m.landmarks[mt.landmark].category,
         "query_instance": o.instance_id,
+        "box": [int(v) for v in o.box],
         "phrase": o.phrase,
         "how": mt.how,
         "visual_sim": rounded(mt.visual_sim),

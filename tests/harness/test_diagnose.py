@@ -1,6 +1,7 @@
 from __future__ import annotations
 
 import json
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -94,3 +95,45 @@ def test_diagnose_suite_form_needs_its_generated_scenes(tmp_path: Path, capsys, 
 def test_diagnose_refuses_zero_frames(scene: Path, tmp_path: Path, capsys) -> None:
     assert main(["diagnose", "--scenes", str(scene), "--work", str(tmp_path / "w"), "--frames", "0"]) == 2
     assert "--frames must be >= 1" in capsys.readouterr().err
+
+
+@pytest.fixture(scope="module")
+def recording(scene: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The generated room as a real recording comes: posed RGB-D frames, no instance image, no objects."""
+    out = tmp_path_factory.mktemp("recording") / "room"
+    shutil.copytree(scene, out)
+    for folder in out.glob("*/instance"):
+        shutil.rmtree(folder)
+    (out / "objects.json").unlink()
+    return out
+
+
+def test_diagnose_names_the_stages_of_a_recording_without_labels(recording: Path, tmp_path: Path, capsys) -> None:
+    argv = ["diagnose", "--scenes", str(recording), "--work", str(tmp_path / "w"), "--out", str(tmp_path / "o")]
+    assert main([*argv, "--pictures", "2"]) == 0
+    captured = capsys.readouterr()
+    result = json.loads((tmp_path / "o" / "diagnose.json").read_text(), parse_constant=pytest.fail)
+    loc = result["pooled"]["localization"]["query"]
+    assert loc["association_precision"] is None and "segmentation" not in result["pooled"]
+    stages = loc["stages"]
+    assert stages["queries"] == 3 and set(stages["coarse_prior"]) >= {"recall_50cm", "median_te_m"}
+    assert len(result["scenes"][0]["localization"]["query"]["per_query"]) == 3
+    assert result["scenes"][0]["landmarks"]["landmarks"] > 0
+    assert "coarse prior (first reference frame)" in captured.err
+    assert len(list((tmp_path / "o" / "pictures" / "room").glob("query_*.png"))) == 2
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (["--track", "oracle-mask"], "has no instance images: diagnose it with --track predicted"),
+        (["--swap"], "--swap needs the dataset's instance images"),
+        (["--pictures", "2"], "--pictures takes a count >= 0 and needs --out"),
+    ],
+)
+def test_diagnose_refuses_what_a_recording_cannot_give(
+    recording: Path, tmp_path: Path, capsys, extra: list[str], message: str
+) -> None:
+    assert main(["diagnose", "--scenes", str(recording), "--work", str(tmp_path / "w"), *extra]) == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err

@@ -23,9 +23,15 @@ from pathlib import Path
 
 import cv2
 
-from openreloc_bench import geometry
 from openreloc_bench.data import io
-from openreloc_bench.data.types import Frame, FrameRecord, SceneSequence, check_intrinsics
+from openreloc_bench.data.types import (
+    INVALID_POSE,
+    Frame,
+    FrameRecord,
+    SceneSequence,
+    check_intrinsics,
+    read_recorded_pose,
+)
 from openreloc_bench.errors import DataError
 
 COLOR_EXTS = (".jpg", ".png", ".jpeg")
@@ -45,9 +51,9 @@ def read_scannet(root: Path | str, split: str = "scannet") -> SceneSequence:
         fid = pose_path.stem
         if not fid.isdigit():
             raise DataError(pose_path, "frame ids must be integers")
-        T = io.read_matrix(pose_path)
-        if not geometry.is_rigid(T, tol=1e-3):
-            skipped[fid] = "invalid pose (inf/NaN or not rigid)"
+        T = read_recorded_pose(pose_path)
+        if T is None:
+            skipped[fid] = INVALID_POSE
             continue
         color = next(
             (root / "color" / f"{fid}{e}" for e in COLOR_EXTS if (root / "color" / f"{fid}{e}").exists()), None
@@ -84,19 +90,6 @@ class _ResizingSequence(SceneSequence):
                 inst = cv2.resize(inst, (self.width, self.height), interpolation=cv2.INTER_NEAREST)
         depth = io.read_depth(r.depth_path, self.depth_scale, expect_hw=(self.height, self.width))  # type: ignore[arg-type]
         return Frame(f"{self.split}/{r.frame_id}", r.T_wc, self.K, color, depth, inst)
-
-    def subset(self, indices: list[int] | range) -> _ResizingSequence:
-        base = super().subset(indices)
-        return _ResizingSequence(
-            base.split,
-            base.K,
-            base.width,
-            base.height,
-            base.records,
-            base.depth_scale,
-            base.load_instances,
-            base.skipped,
-        )
 
 
 def stride_split(seq: SceneSequence, stride: int = 20, offset: int = 10) -> tuple[SceneSequence, SceneSequence]:

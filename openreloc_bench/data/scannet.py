@@ -22,6 +22,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import cv2
+import numpy as np
 
 from openreloc_bench.data import io
 from openreloc_bench.data.types import (
@@ -67,15 +68,27 @@ def read_scannet(root: Path | str, split: str = "scannet") -> SceneSequence:
         records.append(FrameRecord(fid, color, T, depth, inst if inst.exists() else None))
     if not records:
         raise DataError(root / "pose", "no frames with a valid pose")
+    return at_depth_size(split, Kc, records, skipped)
+
+
+def at_depth_size(
+    split: str,
+    K_color: np.ndarray,
+    records: list[FrameRecord],
+    skipped: dict[str, str],
+    depth_scale: float = io.DEPTH_SCALE_MM,
+) -> ResizingSequence:
+    """Frames of a sensor whose depth is registered to a larger colour image (ScanNet's and 12-Scenes'
+    Structure sensor): served at the depth size, with the colour intrinsics rescaled to it."""
     dh, dw = io.read_depth(records[0].depth_path).shape  # type: ignore[arg-type]
     ch, cw = io.read_rgb(records[0].color_path).shape[:2]
-    K = Kc.copy()
+    K = np.array(K_color, dtype=np.float64)
     K[0] *= dw / cw
     K[1] *= dh / ch
-    return _ResizingSequence(split, K, dw, dh, records, skipped=skipped)
+    return ResizingSequence(split, K, dw, dh, records, depth_scale, skipped=skipped)
 
 
-class _ResizingSequence(SceneSequence):
+class ResizingSequence(SceneSequence):
     """A SceneSequence whose colour and instance images are resized to the depth size on read."""
 
     def __getitem__(self, i: int) -> Frame:

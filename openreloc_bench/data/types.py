@@ -1,4 +1,5 @@
-"""Typed frames and lazily loaded sequences, shared by every reader (own layout, ScanNet, TUM).
+"""Typed frames and lazily loaded sequences, shared by every reader (own layout, ScanNet, TUM, 7-Scenes,
+12-Scenes).
 
 A :class:`SceneSequence` keeps only paths and poses in memory and decodes images on access, so a
 1000-frame scene costs kilobytes until a method actually reads it.

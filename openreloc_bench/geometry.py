@@ -197,6 +197,22 @@ def depth_to_points(
     return pts if T_wc is None else transform_points(T_wc, pts)
 
 
+def reproject_depth(
+    depth: ArrayLike, K_from: ArrayLike, K_to: ArrayLike, T_to_from: ArrayLike, hw_to: tuple[int, int]
+) -> np.ndarray:
+    """A depth map as another pinhole camera sees it (``T_to_from`` maps the first camera's points
+    into the second's): each valid pixel lands on its nearest pixel there, the nearest surface wins,
+    and pixels no depth reaches are 0 (invalid). Float32 (H, W) at ``hw_to``."""
+    h, w = hw_to
+    pts = transform_points(T_to_from, depth_to_points(depth, K_from))
+    pts = pts[pts[:, 2] > 0]
+    uv = np.rint(pts[:, :2] / pts[:, 2:] @ np.asarray(K_to)[:2, :2].T + np.asarray(K_to)[:2, 2]).astype(np.int64)
+    inside = (uv[:, 0] >= 0) & (uv[:, 0] < w) & (uv[:, 1] >= 0) & (uv[:, 1] < h)
+    nearest = np.full(h * w, np.inf)
+    np.minimum.at(nearest, uv[inside, 1] * w + uv[inside, 0], pts[inside, 2])
+    return np.where(np.isfinite(nearest), nearest, 0.0).reshape(h, w).astype(np.float32)
+
+
 # --------------------------------------------------------------------------------------------
 # Pose errors
 # --------------------------------------------------------------------------------------------

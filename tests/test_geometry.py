@@ -76,6 +76,19 @@ def test_depth_to_points_skips_invalid():
     assert g.depth_to_points(depth, K).shape == (9, 3)
 
 
+def test_reproject_depth_shifts_by_the_disparity_and_keeps_the_nearest_surface():
+    """Seen from 0.1 m to the right (f = 100 px), a point at depth d moves 10 / d px to the left."""
+    K = g.intrinsics(100.0, 100.0, 20.0, 10.0)
+    depth = np.zeros((20, 40))
+    depth[10, 30] = 2.0  # -> column 25
+    depth[5, 30], depth[5, 25] = 1.0, 2.0  # both -> column 20: the nearer one hides the other
+    depth[15, 2] = 1.0  # -> column -8: out of view
+    depth[0, 0] = np.nan  # no reading
+    out = g.reproject_depth(depth, K, K, g.make_pose(np.eye(3), [-0.1, 0.0, 0.0]), (20, 40))
+    assert out.dtype == np.float32 and out.shape == (20, 40)
+    assert {(int(v), int(u)): float(out[v, u]) for v, u in zip(*np.nonzero(out))} == {(10, 25): 2.0, (5, 20): 1.0}
+
+
 def test_principal_point_at_pixel_centre():
     K = g.intrinsics_from_fov(640, 480, 60)
     uv, _ = g.project(K, np.eye(4), np.array([[0.0, 0.0, 2.0]]))

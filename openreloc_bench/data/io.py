@@ -19,6 +19,9 @@ import numpy as np
 from openreloc_bench.errors import DataError
 
 DEPTH_SCALE_MM = 1000.0  # depth PNG stores uint16 millimetres (ScanNet convention)
+NO_DEPTH = 65535
+"""The uint16 maximum in a depth PNG: no reading, like 0 (7-Scenes marks invalid pixels with it), never a
+distance."""
 
 
 _TEMP_SUFFIX = ".tmp"
@@ -159,13 +162,15 @@ def read_rgb(path: Path | str, expect_hw: tuple[int, int] | None = None) -> np.n
 
 
 def read_depth(path: Path | str, scale: float = DEPTH_SCALE_MM, expect_hw: tuple[int, int] | None = None) -> np.ndarray:
-    """Metric depth float32 (H,W) from a uint16 PNG; 0 (invalid) becomes 0.0."""
+    """Metric depth float32 (H,W) from a uint16 PNG; 0 and :data:`NO_DEPTH` (invalid) become 0.0."""
     path = Path(path)
     img = _read_raw(path)
     if img.ndim != 2 or img.dtype != np.uint16:
         raise DataError(path, f"depth must be a single-channel uint16 PNG, got {img.dtype} with shape {img.shape}")
     _check_size(path, img, expect_hw)
-    return img.astype(np.float32) / scale
+    depth = img.astype(np.float32) / scale
+    depth[img == NO_DEPTH] = 0.0
+    return depth
 
 
 def read_instance(path: Path | str, expect_hw: tuple[int, int] | None = None) -> np.ndarray:
@@ -179,9 +184,10 @@ def read_instance(path: Path | str, expect_hw: tuple[int, int] | None = None) ->
 
 
 def depth_to_png(depth_m: np.ndarray, scale: float = DEPTH_SCALE_MM) -> np.ndarray:
-    """Metric depth -> uint16 millimetres; NaN, inf, <= 0 and out-of-range become 0 (invalid)."""
+    """Metric depth -> uint16 millimetres; NaN, inf, <= 0 and what rounds to :data:`NO_DEPTH` or beyond
+    become 0 (invalid)."""
     d = np.nan_to_num(np.asarray(depth_m, dtype=np.float64), nan=0.0, posinf=0.0, neginf=0.0) * scale
-    d = np.where((d > 0) & (d < 65535.5), np.round(d), 0)
+    d = np.where((d > 0) & (d < NO_DEPTH - 0.5), np.round(d), 0)
     return d.astype(np.uint16)
 
 

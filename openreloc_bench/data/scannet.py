@@ -22,10 +22,17 @@ from __future__ import annotations
 from pathlib import Path
 
 import cv2
+import numpy as np
 
-from openreloc_bench import geometry
 from openreloc_bench.data import io
-from openreloc_bench.data.types import Frame, FrameRecord, SceneSequence, check_intrinsics
+from openreloc_bench.data.types import (
+    INVALID_POSE,
+    Frame,
+    FrameRecord,
+    SceneSequence,
+    check_intrinsics,
+    read_recorded_pose,
+)
 from openreloc_bench.errors import DataError
 
 COLOR_EXTS = (".jpg", ".png", ".jpeg")
@@ -45,9 +52,9 @@ def read_scannet(root: Path | str, split: str = "scannet") -> SceneSequence:
         fid = pose_path.stem
         if not fid.isdigit():
             raise DataError(pose_path, "frame ids must be integers")
-        T = io.read_matrix(pose_path)
-        if not geometry.is_rigid(T, tol=1e-3):
-            skipped[fid] = "invalid pose (inf/NaN or not rigid)"
+        T = read_recorded_pose(pose_path)
+        if T is None:
+            skipped[fid] = INVALID_POSE
             continue
         color = next(
             (root / "color" / f"{fid}{e}" for e in COLOR_EXTS if (root / "color" / f"{fid}{e}").exists()), None
@@ -61,15 +68,27 @@ def read_scannet(root: Path | str, split: str = "scannet") -> SceneSequence:
         records.append(FrameRecord(fid, color, T, depth, inst if inst.exists() else None))
     if not records:
         raise DataError(root / "pose", "no frames with a valid pose")
+    return at_depth_size(split, Kc, records, skipped)
+
+
+def at_depth_size(
+    split: str,
+    K_color: np.ndarray,
+    records: list[FrameRecord],
+    skipped: dict[str, str],
+    depth_scale: float = io.DEPTH_SCALE_MM,
+) -> ResizingSequence:
+    """Frames of a sensor whose depth is registered to a larger colour image (ScanNet's and 12-Scenes'
+    Structure sensor): served at the depth size, with the colour intrinsics rescaled to it."""
     dh, dw = io.read_depth(records[0].depth_path).shape  # type: ignore[arg-type]
     ch, cw = io.read_rgb(records[0].color_path).shape[:2]
-    K = Kc.copy()
+    K = np.array(K_color, dtype=np.float64)
     K[0] *= dw / cw
     K[1] *= dh / ch
-    return _ResizingSequence(split, K, dw, dh, records, skipped=skipped)
+    return ResizingSequence(split, K, dw, dh, records, depth_scale, skipped=skipped)
 
 
-class _ResizingSequence(SceneSequence):
+class ResizingSequence(SceneSequence):
     """A SceneSequence whose colour and instance images are resized to the depth size on read."""
 
     def __getitem__(self, i: int) -> Frame:
@@ -84,19 +103,6 @@ class _ResizingSequence(SceneSequence):
                 inst = cv2.resize(inst, (self.width, self.height), interpolation=cv2.INTER_NEAREST)
         depth = io.read_depth(r.depth_path, self.depth_scale, expect_hw=(self.height, self.width))  # type: ignore[arg-type]
         return Frame(f"{self.split}/{r.frame_id}", r.T_wc, self.K, color, depth, inst)
-
-    def subset(self, indices: list[int] | range) -> _ResizingSequence:
-        base = super().subset(indices)
-        return _ResizingSequence(
-            base.split,
-            base.K,
-            base.width,
-            base.height,
-            base.records,
-            base.depth_scale,
-            base.load_instances,
-            base.skipped,
-        )
 
 
 def stride_split(seq: SceneSequence, stride: int = 20, offset: int = 10) -> tuple[SceneSequence, SceneSequence]:

@@ -1,4 +1,5 @@
-"""Typed frames and lazily loaded sequences, shared by every reader (own layout, ScanNet, TUM).
+"""Typed frames and lazily loaded sequences, shared by every reader (own layout, ScanNet, TUM, 7-Scenes,
+12-Scenes).
 
 A :class:`SceneSequence` keeps only paths and poses in memory and decodes images on access, so a
 1000-frame scene costs kilobytes until a method actually reads it.
@@ -6,12 +7,15 @@ A :class:`SceneSequence` keeps only paths and poses in memory and decodes images
 
 from __future__ import annotations
 
+import re
 from collections.abc import Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import Self
 
 import numpy as np
 
+from openreloc_bench import geometry
 from openreloc_bench.data import io
 from openreloc_bench.errors import DataError
 
@@ -102,18 +106,10 @@ class SceneSequence:
         """Whether every frame gives its instance image (not when ``load_instances`` is off: predicted track)."""
         return self.load_instances and bool(self.records) and all(r.instance_path is not None for r in self.records)
 
-    def subset(self, indices: list[int] | range) -> SceneSequence:
-        """A view on some frames (e.g. the ScanNet stride split), sharing paths, not copies."""
-        return SceneSequence(
-            self.split,
-            self.K,
-            self.width,
-            self.height,
-            [self.records[i] for i in indices],
-            self.depth_scale,
-            self.load_instances,
-            dict(self.skipped),
-        )
+    def subset(self, indices: list[int] | range) -> Self:
+        """A view on some frames (e.g. the ScanNet stride split), sharing paths, not copies; a reader's
+        subclass (one that decodes its frames its own way) stays that subclass."""
+        return replace(self, records=[self.records[i] for i in indices], skipped=dict(self.skipped))
 
 
 def check_intrinsics(K: np.ndarray, path: Path | str) -> np.ndarray:
@@ -124,3 +120,17 @@ def check_intrinsics(K: np.ndarray, path: Path | str) -> np.ndarray:
     if K.shape != (3, 3) or not np.all(np.isfinite(K)) or K[0, 0] <= 0 or K[1, 1] <= 0:
         raise DataError(path, "invalid intrinsics (need finite fx, fy > 0)")
     return K
+
+
+INVALID_POSE = "invalid pose (inf/NaN or not rigid)"
+"""Why a reader leaves a recorded frame out (``SceneSequence.skipped``)."""
+
+
+def read_recorded_pose(path: Path) -> np.ndarray | None:
+    """A recorded frame's 4x4 pose, or None where the recording marks it invalid: non-finite numbers
+    (``-inf``, ``nan``, or MSVC's ``-1.#INF`` / ``-1.#IND``, which some Windows-made datasets hold) or a
+    matrix that is not rigid."""
+    if re.search(r"inf|nan|#ind", io.read_text(path), re.IGNORECASE):
+        return None
+    T = io.read_matrix(path)
+    return T if geometry.is_rigid(T, tol=1e-3) else None

@@ -1,4 +1,5 @@
-"""Converting ScanNet exports and TUM RGB-D sequences (written here in their real formats) into scenes."""
+"""Converting ScanNet exports, TUM RGB-D sequences, 7-Scenes and 12-Scenes scenes (written here in their
+real formats) into scenes."""
 
 from __future__ import annotations
 
@@ -13,6 +14,8 @@ from openreloc_bench import geometry
 from openreloc_bench.data import convert, io
 from openreloc_bench.data.scene import Scene
 from openreloc_bench.errors import ConfigError, DataError
+from tests.data.test_sevenscenes import write_7scenes_scene
+from tests.data.test_twelvescenes import write_12scenes_scene
 
 
 def write_sens_export(root: Path, n: int = 45, bad_pose: int | None = 20, aggregation: bool = True) -> Path:
@@ -160,3 +163,134 @@ def test_malformed_aggregation_is_named(tmp_path: Path) -> None:
     (src / "scene0004_00.aggregation.json").write_text(json.dumps({"segGroups": [{"label": "chair"}]}))
     with pytest.raises(DataError, match="aggregation.json: every segGroups entry"):
         convert.import_scannet(src, tmp_path / "out")
+
+
+def test_7scenes_sequence_is_split_by_the_stride_protocol(tmp_path: Path) -> None:
+    src = write_7scenes_scene(tmp_path / "7scenes" / "chess")
+    report = convert.import_7scenes(src, tmp_path / "data" / "chess")
+    scene = Scene(report.scene)
+    mapping, query = scene.sequence("mapping"), scene.sequence("query")
+    assert [r.frame_id for r in mapping.records] == ["000000"] and [r.frame_id for r in query.records] == ["000010"]
+    assert report.skipped == {"seq-01/frame-000020": "invalid pose (inf/NaN or not rigid)"}
+    assert (report.scene / "source_frames.txt").read_text().splitlines()[1:] == [
+        "mapping/000000 seq-01/frame-000000",
+        "query/000010 seq-01/frame-000010",
+    ]
+    source = scene.info["source"]
+    assert (source["format"], source["protocol"], source["sequence"], source["converter_version"]) == (
+        "7scenes",
+        "stride",
+        "seq-01",
+        2,
+    )
+    np.testing.assert_allclose(query.K[0], [52.5, 0.0, 32.0])  # the colour camera's, f = 525 at 640x480
+    np.testing.assert_allclose(query[0].T_wc[:3, 3], [1.1256, 0.0, -0.0021], atol=2e-4)  # colour camera's centre
+    other = convert.import_7scenes(src, tmp_path / "data" / "chess2", sequence="seq-02", stride=5, offset=2)
+    assert other.frames == {"mapping": 5, "query": 5} and not other.skipped
+
+
+def test_7scenes_splits_map_the_training_sequences_and_query_the_test_ones(tmp_path: Path) -> None:
+    src = write_7scenes_scene(tmp_path / "chess")
+    report = convert.import_7scenes(src, tmp_path / "data" / "chess", protocol="splits")
+    assert report.frames == {"mapping": 3, "query": 1}
+    assert report.skipped == {"seq-01/frame-000020": "invalid pose (inf/NaN or not rigid)"}
+    assert (report.scene / "source_frames.txt").read_text().splitlines()[1:] == [
+        "mapping/000000 seq-01/frame-000000",
+        "mapping/000001 seq-02/frame-000000",
+        "mapping/000002 seq-02/frame-000020",
+        "query/000000 seq-03/frame-000010",
+    ]
+    scene = Scene(report.scene)
+    np.testing.assert_allclose(scene.sequence("mapping")[1].T_wc[:3, 3], [2.0256, 0.0, -0.0021], atol=2e-4)
+    every = convert.import_7scenes(src, tmp_path / "data" / "all", protocol="splits", stride=1, offset=0)
+    assert every.frames == {"mapping": 49, "query": 25}
+    with pytest.raises(ConfigError, match="--sequence is for the stride protocol"):
+        convert.import_7scenes(src, tmp_path / "o1", protocol="splits", sequence="seq-01")
+    with pytest.raises(ConfigError, match=r"splits protocol needs --stride >= 1 and 0 <= --offset < --stride"):
+        convert.import_7scenes(src, tmp_path / "o2", protocol="splits", stride=1, offset=1)
+
+
+def test_12scenes_by_the_stride_protocol_and_by_its_split(tmp_path: Path) -> None:
+    src = write_12scenes_scene(tmp_path / "apt1_kitchen")
+    stride = convert.import_12scenes(src, tmp_path / "data" / "stride")
+    assert [r.frame_id for r in Scene(stride.scene).sequence("mapping").records] == ["000000", "000020", "000040"]
+    assert [r.frame_id for r in Scene(stride.scene).sequence("query").records] == ["000010"]  # 30 is lost
+    assert len(stride.skipped) == 2
+    splits = convert.import_12scenes(src, tmp_path / "data" / "splits", protocol="splits", stride=10, offset=0)
+    scene = Scene(splits.scene)
+    assert [r.frame_id for r in scene.sequence("mapping").records] == ["000020", "000040"]  # 30 is lost
+    assert [r.frame_id for r in scene.sequence("query").records] == ["000000", "000010"]  # test frames < 15
+    assert scene.info["source"]["test_frames"] == 15 and scene.sequence("query").K[0, 0] == pytest.approx(29.0)
+    assert "query/000010 data/frame-000010" in (splits.scene / "source_frames.txt").read_text().splitlines()
+
+
+FAR_MM = 12000
+
+
+def _far_and_unread(path: Path, units_per_mm: float) -> None:
+    """Rewrite a recording's depth PNG with a patch 12 m away and a row of 65535 (no reading)."""
+    depth = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    h, w = depth.shape
+    depth[h // 2 : h // 2 + 4, w // 4 : w // 2] = round(FAR_MM * units_per_mm)
+    depth[-1] = io.NO_DEPTH
+    io.write_png(path, depth)
+
+
+FRAME_10 = {
+    "scannet": (lambda root: write_sens_export(root, n=12, bad_pose=None), lambda src: src / "depth" / "10.png", 1),
+    "tum": (lambda root: write_tum_sequence(root, n=12), lambda src: sorted((src / "depth").glob("*.png"))[10], 5),
+    "7scenes": (
+        lambda root: write_7scenes_scene(root, n_sequences=1, n=12),
+        lambda src: src / "seq-01" / "frame-000010.depth.png",
+        1,
+    ),
+    "12scenes": (
+        lambda root: write_12scenes_scene(root, n=12, n_test=1),
+        lambda src: src / "data" / "frame-000010.depth.png",
+        1,
+    ),
+}
+"""Per format: a 12-frame recording, the depth file of its frame 10 (a query frame), its units per mm."""
+
+
+@pytest.mark.parametrize("fmt", convert.FORMATS)
+def test_depth_beyond_max_depth_or_unread_is_written_as_missing(tmp_path: Path, fmt: str) -> None:
+    write, frame_10, units_per_mm = FRAME_10[fmt]
+    src = write(tmp_path / "rec")
+    _far_and_unread(frame_10(src), units_per_mm)
+    importer = getattr(convert, f"import_{fmt}")
+    cut = importer(src, tmp_path / "cut")
+    kept = importer(src, tmp_path / "kept", max_depth=15.0)
+    assert Scene(cut.scene).info["source"]["max_depth"] == convert.MAX_DEPTH_M
+    cut_mm, kept_mm = (cv2.imread(str(r.scene / "query/depth/000010.png"), cv2.IMREAD_UNCHANGED) for r in (cut, kept))
+    assert io.NO_DEPTH not in cut_mm and io.NO_DEPTH not in kept_mm
+    assert (cut_mm == 0).any() and 1000 < cut_mm.max() < 2100  # only the wall is left
+    assert (abs(kept_mm.astype(int) - FAR_MM) < 100).any() and kept_mm.max() < FAR_MM + 100
+
+
+@pytest.mark.parametrize(
+    ("fmt", "write", "found"),
+    [
+        ("7scenes", write_tum_sequence, "it looks like a TUM RGB-D sequence (`import tum`)"),
+        ("scannet", write_7scenes_scene, "it looks like a 7-Scenes scene (`import 7scenes`)"),
+        ("12scenes", write_sens_export, "it looks like a ScanNet export (`import scannet`)"),
+        ("tum", write_12scenes_scene, "it looks like a 12-Scenes scene (`import 12scenes`)"),
+    ],
+)
+def test_each_importer_refuses_another_layout_and_names_it(tmp_path: Path, fmt: str, write, found: str) -> None:
+    src = write(tmp_path / "rec")
+    expected = convert.LAYOUTS[fmt]
+    with pytest.raises(DataError, match=f"not {expected.what}: expected ") as refused:
+        getattr(convert, f"import_{fmt}")(src, tmp_path / "out")
+    assert str(refused.value).endswith(found) and expected.expected in str(refused.value)
+    assert not (tmp_path / "out").exists()
+
+
+def test_an_unknown_folder_is_described(tmp_path: Path) -> None:
+    (tmp_path / "chess" / "images").mkdir(parents=True)
+    for name in ("seq-01.zip", "seq-02.zip", "TrainSplit.txt", ".DS_Store"):
+        (tmp_path / "chess" / name).write_text("")
+    with pytest.raises(DataError, match=r"it holds TrainSplit.txt, images/, seq-01.zip, seq-02.zip \(unpack the"):
+        convert.import_7scenes(tmp_path / "chess", tmp_path / "out")
+    with pytest.raises(DataError, match="no such folder"):
+        convert.import_tum(tmp_path / "missing", tmp_path / "out")

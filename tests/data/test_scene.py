@@ -34,6 +34,9 @@ def test_depth_png_is_millimetres_and_invalid_is_zero(tmp_path: Path):
     io.write_png(tmp_path / "d.png", png)
     back = io.read_depth(tmp_path / "d.png")
     assert back.tolist() == [[1.25, 0.0], [0.0, 0.0]]
+    assert io.depth_to_png(np.array([65.534, 65.535])).tolist() == [65534, 0]  # 65535 would read as no reading
+    io.write_png(tmp_path / "sentinel.png", np.array([[65534, 65535]], np.uint16))
+    assert io.read_depth(tmp_path / "sentinel.png").tolist() == [[np.float32(65.534), 0.0]]
 
 
 def test_same_content_gives_identical_bytes(tmp_path: Path):

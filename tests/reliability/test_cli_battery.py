@@ -19,6 +19,9 @@ import pytest
 from openreloc_bench.data import paths
 from openreloc_bench.data.results import read_tum_trajectory
 from openreloc_bench.harness.leaderboard.rows import BOARD_INPUT_COLUMNS
+from tests.data.test_convert import write_tum_sequence
+from tests.data.test_sevenscenes import write_7scenes_scene
+from tests.data.test_twelvescenes import write_12scenes_scene
 from tests.reliability.conftest import PLUGIN, World, checksums, one_line_error, run
 
 
@@ -283,6 +286,31 @@ MISTAKES: dict[str, tuple[str, Callable[[World], list[str]], str]] = {
         ],
         "its files record different tracks",
     ),
+    "import 7scenes: a TUM RGB-D sequence": (
+        "import",
+        lambda w: ["import", "7scenes", str(write_tum_sequence(w.inputs / "fr1", n=3)), "--out", str(w.tmp / "imp")],
+        "it looks like a TUM RGB-D sequence (`import tum`)",
+    ),
+    "import 7scenes: its sequences still zipped": (
+        "import",
+        lambda w: ["import", "7scenes", str(zipped_7scenes(w)), "--out", str(w.tmp / "imp")],
+        "it holds TestSplit.txt, TrainSplit.txt, seq-01.zip (unpack the .zip files first)",
+    ),
+    "import 7scenes --protocol splits: TestSplit.txt names a missing sequence": (
+        "import",
+        lambda w: ["import", "7scenes", str(seven_scenes(w, test_split="sequence9\n")), "--protocol", "splits", "--out", str(w.tmp / "imp")],
+        "seq-09: no such sequence; the scene has seq-01, seq-02",
+    ),
+    "import 12scenes --protocol splits: no split.txt": (
+        "import",
+        lambda w: ["import", "12scenes", str(twelve_scenes_without_split(w)), "--protocol", "splits", "--out", str(w.tmp / "imp")],
+        "split.txt: file not found",
+    ),
+    "import tum: --max-depth 0": (
+        "import",
+        lambda w: ["import", "tum", str(write_tum_sequence(w.inputs / "fr1", n=3)), "--max-depth", "0", "--out", str(w.tmp / "imp")],
+        "--max-depth must be in (0, 65.534] metres, got 0.0",
+    ),
     "train-encoder: --threads 0": (
         "train-encoder",
         lambda w: ["train-encoder", "--out", str(w.tmp / "enc"), "--threads", "0"],
@@ -297,6 +325,28 @@ MISTAKES: dict[str, tuple[str, Callable[[World], list[str]], str]] = {
 
 
 SUITE_SCENE = "  - {{name: {name}, seed: 3, width: 32, height: 24, n_query: 2, max_mapping_frames: 2, n_displaced: 0, objects_per_room: 4{extra}}}\n"
+
+
+def seven_scenes(w: World, test_split: str) -> Path:
+    """A 7-Scenes scene of two short sequences whose ``TestSplit.txt`` holds ``test_split``."""
+    root = write_7scenes_scene(w.inputs / "chess", n_sequences=2, n=3)
+    (root / "TestSplit.txt").write_text(test_split)
+    return root
+
+
+def zipped_7scenes(w: World) -> Path:
+    """A 7-Scenes scene as its download unpacks: the split files and one zip per sequence."""
+    root = w.inputs / "chess"
+    root.mkdir()
+    for name, text in (("TrainSplit.txt", "sequence1\n"), ("TestSplit.txt", "sequence1\n"), ("seq-01.zip", "PK")):
+        (root / name).write_text(text)
+    return root
+
+
+def twelve_scenes_without_split(w: World) -> Path:
+    root = write_12scenes_scene(w.inputs / "apt1_kitchen", n=3, n_test=1)
+    (root / "split.txt").unlink()
+    return root
 
 
 def suite_file(w: World, extra: str = "", name: str = "s1", at: str = "suite.yaml") -> Path:

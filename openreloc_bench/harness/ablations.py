@@ -49,6 +49,7 @@ ABLATION_ROWS: tuple[Row, ...] = (
         "#10 Single Coarse Prior, w/o DIoU-based Retrieval (#5 on #9)",
         {**_SINGLE_PRIOR, "retrieval": "visibility"},
     ),
+    Row("no_anchors", "#11 w/o Object-Anchored Keypoints (beyond the paper)", {"anchors": {"enabled": False}}),
 )
 FULL_ROW = Row("full", "Ours Full")
 

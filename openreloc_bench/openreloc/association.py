@@ -28,6 +28,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from openreloc_bench.config import check_ranges
+from openreloc_bench.openreloc.verify import ObjectEvidence
 
 
 @dataclass
@@ -248,3 +249,30 @@ def oracle_matches(
         for qi, o in enumerate(objects)
         if o.instance_id is not None and int(o.instance_id) in known
     ]
+
+
+def verification_evidence(
+    objects: list[QueryObject],
+    matched: dict[int, Match],
+    scores: np.ndarray,
+    ids: list[int],
+    invalid: frozenset[int],
+    n_candidates: int,
+    lead: int | None = None,
+) -> list[ObjectEvidence]:
+    """Each query object's candidate landmark rows for the verification (``matched``: query index -> its
+    association match): the first ``lead`` of its association candidates (all with None), then its ranking
+    by ``scores`` (object x landmark row: the visual cosine, or the place prior's), without invalid
+    landmarks. Objects the association left out get none: it drops an object whose best landmark is a
+    filtered wall or floor (the object is one), and the verification must not give it a look-alike
+    instead (a wall re-matched to a fan or a window drags the pose)."""
+    row_of = {lid: r for r, lid in enumerate(ids)}
+    out = []
+    for q, o in enumerate(objects):
+        rows: list[int] = []
+        if q in matched:
+            first = [row_of[c] for c in matched[q].candidates[:lead]]
+            ranked = dict.fromkeys(first + np.argsort(-scores[q], kind="stable").tolist())
+            rows = [r for r in ranked if ids[r] not in invalid][:n_candidates]
+        out.append(ObjectEvidence(o.mask, rows))
+    return out

@@ -2,8 +2,8 @@
 
 Steps, each timed in ``ObjectMap.stats["timings_s"]``: TSDF fusion -> observation (depth-tested
 projection of the scene cloud into every frame) -> instances (oracle voting, or view-consensus
-clustering of a segmenter's masks) -> reference frames -> descriptors -> invalid-object filtering ->
-scene graph. The 3D instance precision/recall at IoU 0.5 is recorded in ``stats["instance_quality"]``
+clustering of a segmenter's masks) -> reference frames -> descriptors -> the landmarks' keypoints
+(beyond the paper, :mod:`.anchors`) -> invalid-object filtering -> scene graph. The 3D instance precision/recall at IoU 0.5 is recorded in ``stats["instance_quality"]``
 against ground truth independent of any mask: the points inside each object's box of the scene's
 ``objects.json`` (``reference: "object boxes"``); scenes without boxes (real ScanNet exports) fall back
 to the per-point vote of the dataset masks (``reference: "mask voting"``), which the oracle track
@@ -28,6 +28,7 @@ from openreloc_bench.config import check_ranges
 from openreloc_bench.data.scene import Scene
 from openreloc_bench.data.types import SceneSequence
 from openreloc_bench.errors import ConfigError
+from openreloc_bench.openreloc.anchors import AnchorBuildConfig, Anchors, build_anchors
 from openreloc_bench.openreloc.descriptors import DescriptorConfig, compute_descriptors
 from openreloc_bench.openreloc.filtering import FilterConfig, invalid_landmarks
 from openreloc_bench.openreloc.instance_eval import box_point_labels, boxed_objects, instance_report
@@ -65,6 +66,8 @@ class MappingConfig:
     descriptors: DescriptorConfig = field(default_factory=DescriptorConfig)
     filtering: FilterConfig = field(default_factory=FilterConfig)
     graph: GraphConfig = field(default_factory=GraphConfig)
+    anchors: AnchorBuildConfig = field(default_factory=AnchorBuildConfig)
+    """Beyond the paper: the landmarks' keypoints (:mod:`.anchors`)."""
 
     def __post_init__(self) -> None:
         check_ranges(self, positive=("landmark_voxel",), at_least_one=("max_landmark_points",), non_negative=("seed",))
@@ -112,6 +115,19 @@ def build_object_map(
     ids = sorted(set(int(i) for i in sightings.landmark))  # landmarks never seen well enough are dropped
     with timer("descriptors"):
         described = compute_descriptors(mapping_seq, sightings, ids, encoder, config.descriptors, progress)
+    with timer("anchors"):
+        anchors = (
+            build_anchors(
+                mapping_seq,
+                rec.points,
+                np.where(np.isin(labels, ids), labels, 0),
+                config.anchors,
+                config.seed,
+                progress,
+            )
+            if config.anchors.enabled
+            else Anchors.empty()
+        )
     with timer("filtering"):
         invalid, freq = invalid_landmarks(rfs, ids, config.filtering, {i: rec.points[sets[i]] for i in ids})
     # ground-truth categories name oracle landmarks in explanations; a predicted map carries none
@@ -146,6 +162,7 @@ def build_object_map(
         "reference_frequency": {i: round(f, 4) for i, f in freq.items()},
         "crops_per_landmark": described.crops,
         "cross_view_recall": described.cross_view_recall,
+        "anchors": len(anchors),
         "instances_from": source,
         "instance_quality": quality,
         "graph_edges": graph.number_of_edges(),
@@ -163,6 +180,7 @@ def build_object_map(
         encoder_info,
         cfg_mod.to_dict(config),
         stats,
+        anchors,
     )
 
 

@@ -44,6 +44,8 @@ class Hypothesis:
     T_wc: np.ndarray
     matches: list[Match]
     """The query's matches, or a further verification mode's own."""
+    frame: int | None = None
+    """The reference frame (mapping frame index) it starts from, if it does."""
 
 
 @dataclass
@@ -85,7 +87,8 @@ def coarse_hypotheses(
     }
     if no_coarse:
         return [Hypothesis("uninformed", uninformed_start(m, [mt.landmark for mt in matches]), matches)]
-    out = [Hypothesis(f"reference:{f.index}", f.T_wc, matches) for f in prior.ranked[: max(1, cfg.top_frames)]]
+    ranked = prior.ranked[: max(1, cfg.top_frames)]
+    out = [Hypothesis(f"reference:{f.index}", f.T_wc, matches, f.index) for f in ranked]
     if cfg.pnp:
         qmasks = [objects[mt.query].mask for mt in matches]
         centroids = np.array([np.argwhere(mk)[:, ::-1].mean(0) for mk in qmasks])

@@ -5,7 +5,8 @@ object-oriented reference frames (pose + landmark 2D boxes, no images), the scen
 mapping camera. On disk (``map_dir``)::
 
     arrays.npz      landmark points (uint16-quantised offsets in their box), descriptors (float16),
-                    reference frames (ragged arrays), graph edges
+                    reference frames (ragged arrays), graph edges, the landmarks' keypoints
+                    (:mod:`.anchors`: world points, uint8 SIFT descriptors, owning landmark)
     meta.json       format version, camera, encoder/mapping config, stats, per-landmark scalars
     manifest.json   written last: format name + version and the sha256 and size of every file
 
@@ -25,8 +26,10 @@ import numpy as np
 
 from openreloc_bench.data import mapfile
 from openreloc_bench.errors import DataError
+from openreloc_bench.openreloc.anchors import Anchors
 
-MAP_FORMAT_VERSION = 1
+MAP_FORMAT_VERSION = 2
+"""2: the landmarks' keypoints (anchors)."""
 MAP_FORMAT_NAME = "openreloc-map"
 EDGE_KINDS = ("knn", "overlap")
 _POINT_QUANTUM_M = 0.001  # landmark points are stored to 1 mm (coarser only for boxes > 65 m)
@@ -88,6 +91,8 @@ class ObjectMap:
     """Mapping config as plain data."""
     stats: dict[str, Any]
     """Timings and counts (frames kept/total, skipped frames...), for reports."""
+    anchors: Anchors = field(default_factory=Anchors.empty)
+    """The landmarks' keypoints (none where the map was built without them)."""
 
     # ---------------------------------------------------------------------------------------- queries
 
@@ -148,6 +153,9 @@ class ObjectMap:
             ),
             "graph_edges": np.array([e[:2] for e in edges], dtype=np.int32).reshape(-1, 2),
             "graph_edge_kind": np.array([e[2] for e in edges], dtype=np.uint8),
+            "anchor_xyz": self.anchors.xyz.astype(np.float32),
+            "anchor_descriptors": self.anchors.descriptors.astype(np.uint8),
+            "anchor_landmark": self.anchors.landmark.astype(np.int32),
         }
         meta = {
             "K": np.asarray(self.K, dtype=float).tolist(),
@@ -213,6 +221,11 @@ class ObjectMap:
                     visibility={i: float(v) for i, v in zip(rids, a["rf_visibility"][sl])},
                 )
             )
+        anchors = Anchors(
+            a["anchor_xyz"].reshape(-1, 3), a["anchor_descriptors"].reshape(-1, 128), a["anchor_landmark"].ravel()
+        )
+        if not len(anchors.xyz) == len(anchors.descriptors) == len(anchors.landmark):
+            raise ValueError("anchor arrays of different lengths")
         graph = nx.Graph()
         graph.add_nodes_from(int(n) for n in meta["graph_nodes"])
         for (u, v), kind in zip(a["graph_edges"], a["graph_edge_kind"]):
@@ -227,6 +240,7 @@ class ObjectMap:
             encoder=meta["encoder"],
             config=meta["config"],
             stats=meta["stats"],
+            anchors=anchors,
         )
 
 

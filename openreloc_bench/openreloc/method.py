@@ -38,6 +38,7 @@ from openreloc_bench.config import check_ranges
 from openreloc_bench.data.types import SceneSequence
 from openreloc_bench.errors import DataError
 from openreloc_bench.methods import Failure, PoseEstimate, QueryFrame
+from openreloc_bench.openreloc.anchors import AnchorConfig, AnchorIndex, AnchorPose
 from openreloc_bench.openreloc.association import (
     AssociationConfig,
     Match,
@@ -46,6 +47,7 @@ from openreloc_bench.openreloc.association import (
     oracle_matches,
     unique_mask,
     uniqueness,
+    verification_evidence,
 )
 from openreloc_bench.openreloc.build import MappingConfig, build_object_map
 from openreloc_bench.openreloc.coarse_prior import CoarseConfig, place_landmarks
@@ -72,10 +74,10 @@ from openreloc_bench.openreloc.hypotheses import (
 )
 from openreloc_bench.openreloc.map import ObjectMap
 from openreloc_bench.openreloc.refine import RefineConfig
-from openreloc_bench.openreloc.verify import ObjectEvidence, VerifyConfig, extreme_points, verify_matches
+from openreloc_bench.openreloc.verify import VerifyConfig, extreme_points, verify_matches
 from openreloc_bench.vision.base import (
-    ImageTextEncoder,
     ObjectMask,
+    TextCache,
     check_backend,
     create_describer,
     create_encoder,
@@ -83,8 +85,9 @@ from openreloc_bench.vision.base import (
     encoder_fingerprint,
     segmenter_fingerprint,
 )
+from openreloc_bench.vision.local_features import SiftConfig
 
-STAGES = ("segment", "encode", "describe", "associate", "verify", "retrieve", "refine", "compare")
+STAGES = ("segment", "encode", "describe", "associate", "verify", "retrieve", "anchors", "refine", "compare")
 
 
 @dataclass
@@ -127,6 +130,9 @@ class OpenReLocConfig:
     consistency: ConsistencyConfig = field(default_factory=ConsistencyConfig)
     """Beyond the paper: the refined hypotheses that best explain every query mask compete, and the
     lowest ICP loss among them wins, instead of the lowest loss over all, whose matches may be wrong."""
+    anchors: AnchorConfig = field(default_factory=AnchorConfig)
+    """Beyond the paper: the query's keypoints matched against those of the landmarks the object stages
+    chose (:mod:`.anchors`); with enough inliers their pose is returned, else it joins the hypotheses."""
     mapping: MappingConfig = field(default_factory=MappingConfig)
     """Map building settings (used by ``build_map``)."""
     no_refine: bool = False
@@ -237,6 +243,12 @@ class OpenReLoc:
         seen = self.frame_visibility.astype(np.float32)
         self.covisible = (seen.T @ seen) > 0
         self.crop_padding = float(m.config.get("descriptors", {}).get("padding", 0.1))
+        # the landmarks each reference frame sees, and the map's keypoints with the SIFT that made them
+        self.frame_landmarks = {f.index: set(f.boxes) for f in m.reference_frames}
+        self.anchor_index = None
+        if cfg.anchors.enabled and len(m.anchors):
+            features = cfglib.from_dict(SiftConfig, m.config["anchors"]["features"], "map anchors.features")
+            self.anchor_index = AnchorIndex(m.anchors, features)
         self.renderer = LabelRenderer(
             [m.landmarks[i].points for i in self.ids], m.width, m.height, cfg.consistency, seed=cfg.seed
         )
@@ -294,6 +306,14 @@ class OpenReLoc:
                 hypotheses.append(Hypothesis("verified", verified, matches))
         if not hypotheses:
             return Failure("no reference frame shares a matched landmark", diag)
+        if self.anchor_index is not None:
+            with stage("anchors"):
+                anchored = self._anchor_pose(rgb, K, hypotheses + modes, diag)
+            if anchored is not None and anchored.inliers >= cfg.anchors.min_inliers:
+                diag["chosen"] = "anchors"
+                return self._estimate(anchored.T_wc, Hypothesis("anchors", anchored.T_wc, matches), objects, diag)
+            if anchored is not None and anchored.inliers >= cfg.anchors.seed_inliers:
+                hypotheses.append(Hypothesis("anchors", anchored.T_wc, matches))
         compare = _timed(stage, "compare", self._explainer(masks, appearance, K))
         room = max(0, cfg.verification.refined_modes - 1)
         hypotheses += screen_modes(modes, room, compare if cfg.consistency.enabled else None, diag)
@@ -414,6 +434,19 @@ class OpenReLoc:
             # association sees every landmark; filtered ones (walls, floor) only veto the query
             # objects that look most like them, instead of forcing those onto a valid look-alike
             return objects, associate(objects, self.ids, self.descriptors, graph, cfg.association, invalid), appearance
+
+    def _anchor_pose(
+        self, rgb: np.ndarray, K: np.ndarray, hypotheses: list[Hypothesis], diag: dict[str, Any]
+    ) -> AnchorPose | None:
+        """The keypoint pose from the landmarks the object stages chose: every hypothesis' matched
+        landmarks and those its reference frame sees."""
+        assert self.anchor_index is not None
+        landmarks = {mt.landmark for h in hypotheses for mt in h.matches}
+        for h in hypotheses:
+            if h.frame is not None:
+                landmarks |= self.frame_landmarks[h.frame]
+        diag["anchors"] = {}
+        return self.anchor_index.localize(rgb, K, landmarks, self.config.anchors, self.config.seed, diag["anchors"])
 
     def _explainer(self, masks: list[ObjectMask], appearance: np.ndarray | None, K: np.ndarray) -> Compare:
         """The render-and-compare score (:mod:`.consistency`) of camera-to-world poses against all query
@@ -546,60 +579,6 @@ def _blas_controller() -> ThreadpoolController:
     small (hundreds of rows), but OpenBLAS's idle workers busy-wait after each call and take the cores
     from torch (the text encoder's forward pass then runs at less than half its speed)."""
     return ThreadpoolController()
-
-
-def verification_evidence(
-    objects: list[QueryObject],
-    matched: dict[int, Match],
-    scores: np.ndarray,
-    ids: list[int],
-    invalid: frozenset[int],
-    n_candidates: int,
-    lead: int | None = None,
-) -> list[ObjectEvidence]:
-    """Each query object's candidate landmark rows for the verification (``matched``: query index -> its
-    association match): the first ``lead`` of its association candidates (all with None), then its ranking
-    by ``scores`` (object x landmark row: the visual cosine, or the place prior's), without invalid
-    landmarks. Objects the association left out get none: it drops an object whose best landmark is a
-    filtered wall or floor (the object is one), and the verification must not give it a look-alike
-    instead (a wall re-matched to a fan or a window drags the pose)."""
-    row_of = {lid: r for r, lid in enumerate(ids)}
-    out = []
-    for q, o in enumerate(objects):
-        rows: list[int] = []
-        if q in matched:
-            first = [row_of[c] for c in matched[q].candidates[:lead]]
-            ranked = dict.fromkeys(first + np.argsort(-scores[q], kind="stable").tolist())
-            rows = [r for r in ranked if ids[r] not in invalid][:n_candidates]
-        out.append(ObjectEvidence(o.mask, rows))
-    return out
-
-
-class TextCache(ImageTextEncoder):
-    """An encoder whose text embeddings are memoised per string (images pass through): the offline
-    describer encodes the same colour/material/noun phrases for every query object."""
-
-    def __init__(self, encoder: ImageTextEncoder, max_entries: int = 100_000):
-        self.inner, self.max_entries = encoder, max_entries
-        self.name, self.dim = encoder.name, encoder.dim
-        self._cache: dict[str, np.ndarray] = {}
-
-    def encode_images(self, crops: Any) -> np.ndarray:
-        return self.inner.encode_images(crops)
-
-    def encode_texts(self, texts: Any) -> np.ndarray:
-        texts = list(texts)
-        missing = list(dict.fromkeys(t for t in texts if t not in self._cache))
-        if missing:
-            if len(self._cache) + len(missing) > self.max_entries:
-                self._cache.clear()
-            self._cache.update(zip(missing, self.inner.encode_texts(missing)))
-        if not texts:
-            return np.zeros((0, self.dim), np.float32)
-        return np.stack([self._cache[t] for t in texts]).astype(np.float32)
-
-    def config(self) -> dict[str, Any]:
-        return self.inner.config()
 
 
 def _query_object(mk: ObjectMask, visual: np.ndarray, gamma: float) -> QueryObject:

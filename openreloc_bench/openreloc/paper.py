@@ -19,7 +19,8 @@ Switched off (:data:`PAPER_CONFIG`), each by its own setting of :class:`~.method
 - the further coarse hypotheses: the next-ranked reference frames (``coarse.top_frames``) and the
   PnP pose (``coarse.pnp``);
 - the render-and-compare choice among refined hypotheses (``consistency.enabled``) and the restarts
-  of the chosen refinement (``refinement.restart_degrees``).
+  of the chosen refinement (``refinement.restart_degrees``);
+- the landmarks' keypoints and the keypoint pose (``mapping.anchors.enabled``, ``anchors.enabled``).
 
 Choices the paper leaves open keep the project's settings: the encoder and describer (the offline
 ones instead of CLIP ViT-L/14 and an online LLM, so that the benchmark runs without a GPU or a
@@ -38,11 +39,15 @@ from openreloc_bench import config as cfglib
 from openreloc_bench.openreloc.method import OpenReLoc
 
 PAPER_CONFIG: dict[str, Any] = {
-    "mapping": {"filtering": {"shape_filter": False, "scope": "global", "max_frequency": 0.5}},
+    "mapping": {
+        "filtering": {"shape_filter": False, "scope": "global", "max_frequency": 0.5},
+        "anchors": {"enabled": False},
+    },
     "verification": {"enabled": False, "place_frames": 0, "covisible_weight": 1.0, "modes": 1, "hypothesis": False},
     "coarse": {"top_frames": 1, "pnp": False},
     "consistency": {"enabled": False},
     "refinement": {"restart_degrees": 0.0},
+    "anchors": {"enabled": False},
 }
 """The :class:`~.method.OpenReLocConfig` overrides that turn ``openreloc`` into the paper's pipeline."""
 

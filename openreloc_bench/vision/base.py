@@ -199,3 +199,30 @@ def create_segmenter(name: str, **kwargs: Any) -> Segmenter:
 def l2_normalize(x: np.ndarray, eps: float = 1e-12) -> np.ndarray:
     x = np.asarray(x, dtype=np.float32)
     return x / np.maximum(np.linalg.norm(x, axis=-1, keepdims=True), eps)
+
+
+class TextCache(ImageTextEncoder):
+    """An encoder whose text embeddings are memoised per string (images pass through): the offline
+    describer encodes the same colour/material/noun phrases for every query object."""
+
+    def __init__(self, encoder: ImageTextEncoder, max_entries: int = 100_000):
+        self.inner, self.max_entries = encoder, max_entries
+        self.name, self.dim = encoder.name, encoder.dim
+        self._cache: dict[str, np.ndarray] = {}
+
+    def encode_images(self, crops: Any) -> np.ndarray:
+        return self.inner.encode_images(crops)
+
+    def encode_texts(self, texts: Any) -> np.ndarray:
+        texts = list(texts)
+        missing = list(dict.fromkeys(t for t in texts if t not in self._cache))
+        if missing:
+            if len(self._cache) + len(missing) > self.max_entries:
+                self._cache.clear()
+            self._cache.update(zip(missing, self.inner.encode_texts(missing)))
+        if not texts:
+            return np.zeros((0, self.dim), np.float32)
+        return np.stack([self._cache[t] for t in texts]).astype(np.float32)
+
+    def config(self) -> dict[str, Any]:
+        return self.inner.config()

@@ -15,9 +15,8 @@ from openreloc_bench.errors import ConfigError, DataError
 from openreloc_bench.methods import Failure, PoseEstimate, QueryFrame, create_method
 from openreloc_bench.openreloc import hypotheses as hypotheses_module
 from openreloc_bench.openreloc import method as method_module
-from openreloc_bench.openreloc.association import Match, QueryObject
+from openreloc_bench.openreloc.association import Match, QueryObject, verification_evidence
 from openreloc_bench.openreloc.map import ObjectMap
-from openreloc_bench.openreloc.method import verification_evidence
 from openreloc_bench.vision.base import register_encoder
 from tests.openreloc.boxworld import ROOM, MeanColorEncoder, camera_poses, render, write_boxworld
 
@@ -360,7 +359,7 @@ def test_only_the_further_modes_that_render_closest_are_refined(
 
 
 def test_text_cache_encodes_each_phrase_once() -> None:
-    from openreloc_bench.openreloc.method import TextCache
+    from openreloc_bench.vision.base import TextCache
 
     class Counting(MeanColorEncoder):
         calls: list[list[str]] = []

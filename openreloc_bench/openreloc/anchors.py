@@ -1,0 +1,211 @@
+"""Object-anchored keypoints (beyond the paper): local features on the landmarks, for the last centimetres.
+
+The paper's pose comes from aligning landmark points with query masks (:mod:`.refine`), which is only as
+precise as the masks: decimetres with a learned segmenter, worse on real frames. Here, as in PRAM
+(landmark-wise 2D-3D matching) and hloc, each landmark also keeps SIFT keypoints of the mapping frames
+that fall on it, lifted to 3D through depth. At query time the query's SIFT keypoints are matched only
+against the keypoints of the landmarks the object stages chose -- associated, verified, or seen by the
+ranked reference frames -- so the objects do the retrieval and no global search is made; the pose comes
+from pycolmap's LO-RANSAC with refinement. Where keypoints fail (dark, textureless, too few inliers),
+the object pose stands.
+
+Mapping (:func:`build_anchors`): SIFT on every mapping frame; a keypoint belongs to the landmark whose
+scene points lie within ``support_radius`` of its 3D point (keypoints off every landmark are dropped);
+per landmark, at most ``per_voxel`` keypoints of each ``voxel`` of space are kept (seeded choice), which
+bounds the map while keeping every part of the object and several views of each.
+
+Query (:func:`match_anchors`): a query keypoint matches its nearest anchor (RootSIFT) when that is
+closer than ``ratio`` times the nearest anchor lying elsewhere (farther than ``distinct_m`` in 3D): the
+same point seen from several mapping frames gives near-identical anchors, which must not fail the
+ratio test for one another.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Any
+
+import cv2
+import numpy as np
+from scipy.spatial import cKDTree
+
+from openreloc_bench.bars import tqdm
+from openreloc_bench.config import check_ranges
+from openreloc_bench.data.types import SceneSequence
+from openreloc_bench.vision.absolute_pose import AbsolutePoseConfig, estimate_absolute_pose
+from openreloc_bench.vision.local_features import SiftConfig, extract_sift, lift, root_sift
+
+
+@dataclass
+class AnchorBuildConfig:
+    """Which keypoints a landmark keeps (mapping; recorded in the map)."""
+
+    enabled: bool = True
+    """Keep keypoints on the landmarks (False: a map without them, as the paper's)."""
+    features: SiftConfig = field(default_factory=lambda: SiftConfig(max_keypoints=2000))
+    """SIFT of the mapping frames, and of the queries matched against them."""
+    max_depth_step: float = 0.05
+    """A keypoint gets a 3D point only where the depth of its 3x3 pixels varies by at most this share of
+    its own (none from depth edges, where a pixel may take either side's depth)."""
+    support_radius: float = 0.03
+    """A keypoint belongs to a landmark when one of the landmark's scene points lies this close (m)."""
+    voxel: float = 0.05
+    """Side (m) of the cells in which a landmark's keypoints are thinned."""
+    per_voxel: int = 4
+    """Keypoints kept per cell: several views of every part of the object, not every view of each."""
+
+    def __post_init__(self) -> None:
+        check_ranges(self, positive=("max_depth_step", "support_radius", "voxel"), at_least_one=("per_voxel",))
+
+
+@dataclass
+class AnchorConfig:
+    """Matching the query against the chosen landmarks' keypoints (query time)."""
+
+    enabled: bool = True
+    """Match keypoints where the map has them (False: the object pose only, as the paper)."""
+    ratio: float = 0.8
+    """Lowe's ratio test against the nearest anchor lying elsewhere (hloc's 0.8 for SIFT)."""
+    distinct_m: float = 0.05
+    """Anchors closer than this (m) to the nearest one are views of the same point, not rivals."""
+    neighbours: int = 8
+    """Nearest anchors searched per query keypoint (to find the nearest one lying elsewhere)."""
+    min_inliers: int = 20
+    """Query keypoints that must agree with the keypoint pose for it to be returned; with fewer, the pose
+    only joins the object stage's hypotheses (from ``seed_inliers``), which render-and-compare judges."""
+    seed_inliers: int = 8
+    """Inliers a keypoint pose needs to join the object stage's hypotheses."""
+    pose: AbsolutePoseConfig = field(default_factory=lambda: AbsolutePoseConfig(max_iterations=2000))
+    """LO-RANSAC and refinement of the keypoint pose."""
+
+    def __post_init__(self) -> None:
+        check_ranges(self, positive=("distinct_m",), share=("ratio",), at_least_one=("neighbours", "seed_inliers"))
+        if not 4 <= self.seed_inliers <= self.min_inliers:
+            raise ValueError(f"need 4 <= seed_inliers <= min_inliers, got {self.seed_inliers} and {self.min_inliers}")
+
+
+@dataclass
+class Anchors:
+    """Every kept keypoint of every landmark."""
+
+    xyz: np.ndarray
+    """(N, 3) float32 world points."""
+    descriptors: np.ndarray
+    """(N, 128) uint8 SIFT descriptors."""
+    landmark: np.ndarray
+    """(N,) int32 landmark id."""
+
+    def __len__(self) -> int:
+        return len(self.xyz)
+
+    def take(self, rows: np.ndarray) -> Anchors:
+        return Anchors(self.xyz[rows], self.descriptors[rows], self.landmark[rows])
+
+    @classmethod
+    def empty(cls) -> Anchors:
+        return cls(np.zeros((0, 3), np.float32), np.zeros((0, 128), np.uint8), np.zeros(0, np.int32))
+
+
+def build_anchors(
+    seq: SceneSequence,
+    points: np.ndarray,
+    labels: np.ndarray,
+    cfg: AnchorBuildConfig,
+    seed: int,
+    progress: bool = True,
+) -> Anchors:
+    """The keypoints of the mapping frames on the landmarks: ``points`` (N, 3) is the scene cloud and
+    ``labels`` (N,) each point's landmark (0: none)."""
+    on = labels > 0
+    if not on.any() or not seq.has_depth:
+        return Anchors.empty()
+    tree, owner = cKDTree(points[on]), labels[on].astype(np.int32)
+    parts = []
+    for frame in tqdm(seq, total=len(seq), desc="anchors", disable=not progress, leave=False):
+        feats = extract_sift(frame.color, cfg.features)
+        xyz, valid = lift(feats.xy, frame.depth, frame.K, frame.T_wc, cfg.max_depth_step)
+        dist, nearest = tree.query(xyz[valid], distance_upper_bound=cfg.support_radius)
+        found = np.isfinite(dist)
+        rows = np.flatnonzero(valid)[found]
+        parts.append(Anchors(xyz[rows], feats.descriptors[rows], owner[nearest[found]]))
+    if not parts:
+        return Anchors.empty()
+    every = Anchors(*(np.concatenate(a) for a in zip(*((p.xyz, p.descriptors, p.landmark) for p in parts))))
+    return every.take(_thin(every, cfg, np.random.default_rng(seed)))
+
+
+def _thin(a: Anchors, cfg: AnchorBuildConfig, rng: np.random.Generator) -> np.ndarray:
+    """Rows kept: at most ``per_voxel`` of each (landmark, voxel) cell, chosen at random; sorted."""
+    cell = np.floor(a.xyz / cfg.voxel).astype(np.int64)
+    _, group = np.unique(np.column_stack([a.landmark, cell]), axis=0, return_inverse=True)
+    order = np.lexsort((rng.random(len(a)), group.ravel()))
+    g = group.ravel()[order]
+    first = np.r_[0, np.flatnonzero(np.diff(g)) + 1]
+    rank = np.arange(len(g)) - np.repeat(first, np.diff(np.r_[first, len(g)]))
+    return np.sort(order[rank < cfg.per_voxel])
+
+
+@dataclass
+class AnchorPose:
+    """The keypoint pose of a query and its evidence."""
+
+    T_wc: np.ndarray
+    inliers: int
+    """Query keypoints that agree with the pose."""
+    matches: int
+    """Query keypoints matched (the ratio test's survivors)."""
+    landmarks: dict[int, int]
+    """Landmark id -> inliers on it."""
+
+
+class AnchorIndex:
+    """A map's anchors ready for queries: RootSIFT descriptors computed once."""
+
+    def __init__(self, anchors: Anchors, features: SiftConfig):
+        self.anchors, self.features = anchors, features
+        self.root = root_sift(anchors.descriptors)
+
+    def localize(
+        self, rgb: np.ndarray, K: np.ndarray, landmarks: set[int], cfg: AnchorConfig, seed: int, diag: dict[str, Any]
+    ) -> AnchorPose | None:
+        """The keypoint pose from the anchors of ``landmarks``; None without one (too few anchors,
+        keypoints or matches, or no model)."""
+        rows = np.flatnonzero(np.isin(self.anchors.landmark, sorted(landmarks)))
+        feats = extract_sift(rgb, self.features)
+        diag.update(landmarks=len(landmarks), anchors=len(rows), keypoints=len(feats))
+        if len(rows) < cfg.seed_inliers or len(feats) < cfg.seed_inliers:
+            return None
+        query, mapped = match_anchors(root_sift(feats.descriptors), self.root[rows], self.anchors.xyz[rows], cfg)
+        diag["matches"] = len(query)
+        h, w = rgb.shape[:2]
+        pose = estimate_absolute_pose(
+            feats.xy[query], self.anchors.xyz[rows[mapped]], K, w, h, dataclasses.replace(cfg.pose, seed=seed)
+        )
+        if pose is None:
+            return None
+        owners = self.anchors.landmark[rows[mapped[pose.inliers]]]
+        ids, counts = np.unique(owners, return_counts=True)
+        diag["inliers"] = pose.n_inliers
+        return AnchorPose(pose.T_wc, pose.n_inliers, len(query), dict(zip(ids.tolist(), counts.tolist())))
+
+
+def match_anchors(
+    query: np.ndarray, anchors: np.ndarray, xyz: np.ndarray, cfg: AnchorConfig
+) -> tuple[np.ndarray, np.ndarray]:
+    """Ratio-test matches ``(query rows, anchor rows)`` of RootSIFT descriptors, each query row's rival
+    being its nearest anchor farther than ``distinct_m`` from its nearest (see the module doc).
+    FLANN's randomised kd-trees are seeded, so a query gets the same answer in any order."""
+    k = min(cfg.neighbours, len(anchors))
+    if not len(query) or k < 2:
+        return np.zeros(0, int), np.zeros(0, int)
+    cv2.setRNGSeed(0)
+    index = cv2.flann_Index(anchors, {"algorithm": 1, "trees": 4})  # kd-tree
+    nn, dist2 = index.knnSearch(query, k, params={"checks": 64})
+    valid = nn >= 0
+    nn = np.where(valid, nn, 0)
+    elsewhere = valid & (np.linalg.norm(xyz[nn] - xyz[nn[:, :1]], axis=-1) > cfg.distinct_m)
+    rival = np.where(elsewhere.any(axis=1), dist2[np.arange(len(nn)), np.argmax(elsewhere, axis=1)], np.inf)
+    keep = valid[:, 0] & (dist2[:, 0] < cfg.ratio**2 * rival)  # squared L2 distances
+    rows = np.flatnonzero(keep)
+    return rows, nn[rows, 0]

@@ -1,0 +1,104 @@
+"""Object-anchored keypoints: thinning per landmark, the ratio test against anchors lying elsewhere, and
+the keypoint pose of a generated room's queries."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from generators.generate import generate_scene
+from generators.spec import SceneSpec
+from openreloc_bench import geometry
+from openreloc_bench.data.scene import Scene
+from openreloc_bench.methods import PoseEstimate, QueryFrame, create_method
+from openreloc_bench.openreloc.anchors import AnchorBuildConfig, AnchorConfig, Anchors, _thin, match_anchors
+from openreloc_bench.openreloc.map import ObjectMap
+
+TINY = dict(
+    width=320, height=240, objects_per_room=12, room_side_min=3.5, room_side_max=4.0, mapping_step_m=0.5,
+    mapping_step_deg=30.0, max_mapping_frames=16, n_query=4, n_displaced=1,
+)  # fmt: skip
+
+
+def test_thinning_keeps_at_most_per_voxel_of_each_landmark_cell() -> None:
+    xyz = np.array([[0.01, 0.01, 0.01]] * 6 + [[0.3, 0.01, 0.01]] * 2 + [[0.01, 0.01, 0.01]] * 3, np.float32)
+    landmark = np.array([1] * 8 + [2] * 3, np.int32)
+    a = Anchors(xyz, np.zeros((11, 128), np.uint8), landmark)
+    cfg = AnchorBuildConfig(voxel=0.1, per_voxel=4)
+    rows = _thin(a, cfg, np.random.default_rng(0))
+    kept = a.take(rows)
+    # landmark 1: 4 of its 6 in the first cell and both in the second; landmark 2 shares the first cell
+    # in space but is its own cell
+    assert np.bincount(kept.landmark).tolist() == [0, 6, 3]
+    assert rows.tolist() == sorted(rows.tolist())
+    assert np.array_equal(rows, _thin(a, cfg, np.random.default_rng(0)))  # seeded
+
+
+def test_ratio_test_rivals_only_anchors_lying_elsewhere() -> None:
+    d = np.zeros((4, 128), np.float32)
+    d[:, 0] = 1.0
+    d[1, 1] = 0.05  # another view of the same point: nearly the same descriptor
+    d[2, 1] = 0.3  # a different point that looks somewhat alike
+    d[3, 2] = 1.0  # unlike
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    xyz = np.array([[0, 0, 0], [0.01, 0, 0], [1, 0, 0], [2, 0, 0]], np.float32)
+    query = np.zeros((1, 128), np.float32)
+    query[0, :2] = [1.0, 0.024]  # nearest anchor 0, anchor 1 just behind it
+    query /= np.linalg.norm(query)
+    cfg = AnchorConfig(neighbours=4)
+    q, a = match_anchors(query, d, xyz, cfg)
+    assert q.tolist() == [0] and a.tolist() == [0]  # anchor 1 is the same point: no rival
+    apart = xyz.copy()
+    apart[1] = [0.5, 0, 0]  # now it lies elsewhere, and is too alike to pass the ratio test
+    assert len(match_anchors(query, d, apart, cfg)[0]) == 0
+
+
+@pytest.fixture(scope="module")
+def room(tmp_path_factory: pytest.TempPathFactory) -> tuple[Scene, Path]:
+    root = tmp_path_factory.mktemp("anchors")
+    scene = Scene(generate_scene(SceneSpec(name="room", seed=11, **TINY), root, progress=False))
+    method = create_method("openreloc", mapping={"instances_from": "masks"})
+    method.build_map(scene.sequence("mapping"), root / "map")
+    return scene, root / "map"
+
+
+def test_map_keeps_keypoints_on_landmarks_only(room: tuple[Scene, Path]) -> None:
+    _, map_dir = room
+    m = ObjectMap.load(map_dir)
+    assert len(m.anchors) > 100 and m.stats["anchors"] == len(m.anchors)
+    assert set(np.unique(m.anchors.landmark)) <= set(m.landmarks)
+    # every anchor lies on its landmark's surface (within the support radius and the points' spacing)
+    for lid in np.unique(m.anchors.landmark)[:5]:
+        pts = m.landmarks[int(lid)].points
+        on = m.anchors.xyz[m.anchors.landmark == lid]
+        nearest = np.min(np.linalg.norm(on[:, None] - pts[None], axis=-1), axis=1)
+        assert np.percentile(nearest, 90) < 0.03 + m.config["landmark_voxel"]
+
+
+def test_queries_are_placed_by_their_keypoints_within_centimetres(room: tuple[Scene, Path]) -> None:
+    scene, map_dir = room
+    method = create_method("openreloc")
+    method.load_map(map_dir)
+    seq = scene.sequence("query_near")
+    anchored = 0
+    for i in range(len(seq)):
+        f = seq[i]
+        res = method.localize(QueryFrame(f.name, f.color, f.K, f.instance))
+        assert isinstance(res, PoseEstimate)
+        if res.diagnostics["chosen"] == "anchors":
+            anchored += 1
+            assert res.diagnostics["anchors"]["inliers"] >= method.config.anchors.min_inliers
+            t, r = geometry.pose_errors(f.T_wc, res.T_wc)
+            assert t < 0.05 and r < 2.0
+    assert anchored >= len(seq) // 2
+
+
+def test_switched_off_the_object_pose_stands(room: tuple[Scene, Path]) -> None:
+    scene, map_dir = room
+    method = create_method("openreloc", anchors={"enabled": False})
+    method.load_map(map_dir)
+    f = scene.sequence("query_near")[0]
+    res = method.localize(QueryFrame(f.name, f.color, f.K, f.instance))
+    assert "anchors" not in res.diagnostics and res.diagnostics.get("chosen") != "anchors"

@@ -35,6 +35,7 @@ from openreloc_bench.data.scene import Scene
 from openreloc_bench.data.types import SceneSequence
 from openreloc_bench.errors import ConfigError, DataError
 from openreloc_bench.reconstruction.fusion import FusionConfig, fuse_tsdf
+from openreloc_bench.reconstruction.gravity import estimate_up
 from openreloc_bench.reconstruction.lifting import InstanceConfig, instance_sets, lift_by_clustering, lift_by_voting
 from openreloc_bench.reconstruction.observation import FrameObservation, ObservationConfig, observe
 from openreloc_bench.vision.base import ObjectMask, Segmenter, create_segmenter
@@ -163,7 +164,8 @@ def build_goreloc_map(
                     linked.add((min(owners[a], owners[b]), max(owners[a], owners[b])))
 
     ids = np.array(sorted(i for i, c in counts.items() if c.sum() >= cfg.min_detections), np.int64)
-    fits = [fit_ellipsoid(rec.points[sets[i]], cfg.ellipsoid_trim, cfg.ellipsoid_scale) for i in ids]
+    up = estimate_up(seq.poses[rec.usable], rec.points, cfg.fusion.voxel_size)
+    fits = [fit_ellipsoid(rec.points[sets[i]], cfg.ellipsoid_trim, cfg.ellipsoid_scale, up) for i in ids]
     centres = np.array([f[0] for f in fits]).reshape(-1, 3)
     index = {int(i): k for k, i in enumerate(ids)}
     adj = knn_adjacency(centres, cfg.nearest_objects)

@@ -13,20 +13,27 @@ from __future__ import annotations
 
 import numpy as np
 
+from openreloc_bench.reconstruction.gravity import levelling
+
+Z_UP = np.array([0.0, 0.0, 1.0])
 MIN_SEMI_AXIS_M = 0.01
 """Semi-axes are at least this long (m), so flat objects (rugs, paintings) keep a proper quadric."""
 
 
-def fit_ellipsoid(points: np.ndarray, trim: float = 0.01, scale: float = 1.0) -> tuple[np.ndarray, ...]:
+def fit_ellipsoid(
+    points: np.ndarray, trim: float = 0.01, scale: float = 1.0, up: np.ndarray = Z_UP
+) -> tuple[np.ndarray, ...]:
     """(centre (3,), R (3, 3), semi-axes (3,)) of the upright ellipsoid inscribed in the points' box.
 
-    The box is gravity-aligned (indoor objects stand upright, world z is up): its yaw is the principal
+    The box is gravity-aligned (indoor objects stand upright along the world's ``up``, which the map
+    builder establishes: :func:`openreloc_bench.reconstruction.gravity.estimate_up`): its yaw is the principal
     direction of the points' xy spread, its extent along each axis spans the ``trim`` and ``1 - trim``
     quantiles (robust to stray points of noisy masks). The semi-axes are half the extents times
     ``scale``. GOReloc's own ellipsoids come from multi-view detection boxes (OA-SLAM); with RGB-D
     mapping frames, the object's fused points give them directly.
     """
-    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    level = levelling(up)  # world -> a frame whose z is up
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3) @ level.T
     if len(pts) < 3:
         raise ValueError(f"an ellipsoid needs at least 3 points, got {len(pts)}")
     xy = pts[:, :2] - pts[:, :2].mean(axis=0)
@@ -37,7 +44,7 @@ def fit_ellipsoid(points: np.ndarray, trim: float = 0.01, scale: float = 1.0) ->
     lo, hi = np.quantile(local, [trim, 1.0 - trim], axis=0)
     centre = R @ ((lo + hi) / 2)
     axes = np.maximum((hi - lo) / 2 * scale, MIN_SEMI_AXIS_M)
-    return centre, R, axes
+    return level.T @ centre, level.T @ R, axes
 
 
 def dual_quadrics(centres: np.ndarray, rotations: np.ndarray, axes: np.ndarray) -> np.ndarray:

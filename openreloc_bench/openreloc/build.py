@@ -37,6 +37,7 @@ from openreloc_bench.openreloc.reference_frames import ReferenceFrameConfig, lan
 from openreloc_bench.openreloc.scene_graph import GraphConfig, build_scene_graph
 from openreloc_bench.reconstruction.affinity_grouping import lift_by_affinity
 from openreloc_bench.reconstruction.fusion import FusionConfig, Reconstruction, fuse_tsdf
+from openreloc_bench.reconstruction.gravity import estimate_up, levelling
 from openreloc_bench.reconstruction.instance_repair import repair_instances
 from openreloc_bench.reconstruction.lifting import InstanceConfig, instance_sets, lift_by_clustering, lift_by_voting
 from openreloc_bench.reconstruction.observation import FrameObservation, ObservationConfig, observe
@@ -181,6 +182,7 @@ def build_object_map(
         cfg_mod.to_dict(config),
         stats,
         anchors,
+        inst.up,
     )
 
 
@@ -194,6 +196,8 @@ class Instances:
     """(N,) instance id per scene point (0 = none); instances below ``min_points`` already removed."""
     sets: dict[int, np.ndarray]
     """Instance id -> its point indices."""
+    up: np.ndarray
+    """(3,) the world's up, established from the cameras and the cloud (:mod:`reconstruction.gravity`)."""
 
 
 def lift_instances(
@@ -211,6 +215,7 @@ def lift_instances(
     timer = timer or _Timer()
     with timer("fusion"):
         rec = fuse_tsdf(mapping_seq, config.fusion, progress)
+        up = estimate_up(mapping_seq.poses[rec.usable], rec.points, config.fusion.voxel_size)
     with timer("observation"):
         keep = boundaries or config.instances.repair.merge
         obs = observe(mapping_seq, rec.points, rec.usable, config.observation, segmenter, progress, keep)
@@ -218,9 +223,10 @@ def lift_instances(
         if segmenter is None:
             labels = lift_by_voting(len(rec.points), obs, config.instances.voting)
         else:
+            # grouping splits objects off horizontal surfaces: it sees the cloud levelled, up along +z
             labels = repair_instances(
                 rec.points,
-                group_masks(rec.points, obs, config),
+                group_masks(rec.points @ levelling(up).T, obs, config),
                 obs,
                 mapping_seq.poses[:, :3, 3],
                 config.instances.repair,
@@ -228,7 +234,7 @@ def lift_instances(
             )
         sets = instance_sets(labels, config.instances.min_points)
         labels = np.where(np.isin(labels, list(sets)), labels, 0)
-    return Instances(rec, obs, labels, sets)
+    return Instances(rec, obs, labels, sets, up)
 
 
 def group_masks(points: np.ndarray, obs: list, config: MappingConfig) -> np.ndarray:

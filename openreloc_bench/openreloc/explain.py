@@ -15,6 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 
 _ARTICLES = ("a ", "an ", "the ")
+UP = np.array([0.0, 0.0, 1.0])
+"""The generator's up; a map gives its own (:attr:`.map.ObjectMap.up`)."""
 
 
 @dataclass
@@ -46,27 +48,27 @@ def _strip_article(text: str) -> str:
     return t
 
 
-def _bearing(T_wc: np.ndarray, point: np.ndarray) -> float:
+def _bearing(T_wc: np.ndarray, point: np.ndarray, up: np.ndarray) -> float:
     """Horizontal angle (degrees) of ``point`` from the camera's viewing direction; + = to the right."""
-    forward, right = T_wc[:3, 2].copy(), T_wc[:3, 0].copy()
-    forward[2] = right[2] = 0.0
+    forward, right = T_wc[:3, 2] - (T_wc[:3, 2] @ up) * up, T_wc[:3, 0] - (T_wc[:3, 0] @ up) * up
     d = np.asarray(point, dtype=np.float64) - T_wc[:3, 3]
     f = float(d @ forward / max(np.linalg.norm(forward), 1e-9))
     r = float(d @ right / max(np.linalg.norm(right), 1e-9))
     return float(np.degrees(np.arctan2(r, f)))
 
 
-def explain_pose(T_wc: np.ndarray, objects: list[PlacedObject]) -> str:
-    """One line placing the camera ``T_wc`` relative to ``objects`` (empty string without objects)."""
+def explain_pose(T_wc: np.ndarray, objects: list[PlacedObject], up: np.ndarray = UP) -> str:
+    """One line placing the camera ``T_wc`` relative to ``objects`` (empty string without objects), in
+    a world whose up is ``up`` (unit)."""
     if not objects:
         return ""
     eye = np.asarray(T_wc, dtype=np.float64)[:3, 3]
     dist = [float(np.linalg.norm(eye - np.clip(eye, o.box_min, o.box_max))) for o in objects]
     anchor = int(np.argmin(dist))
-    off_axis = [abs(_bearing(T_wc, o.center)) for o in objects]
+    off_axis = [abs(_bearing(T_wc, o.center, up)) for o in objects]
     others = [i for i in range(len(objects)) if i != anchor] or [anchor]
     faced = min(others, key=lambda i: off_axis[i])
-    bearing = _bearing(T_wc, objects[anchor].center)
+    bearing = _bearing(T_wc, objects[anchor].center, up)
     name = objects[anchor].label
     if abs(bearing) <= 45:
         where = f"{dist[anchor]:.1f} m in front of the {name}"

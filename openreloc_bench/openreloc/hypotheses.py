@@ -173,12 +173,12 @@ def choose_hypothesis(losses: list[float], explained: list[float], tie_share: fl
     return min((i for i in finite if explained[i] >= (1.0 - tie_share) * top), key=lambda i: (losses[i], i))
 
 
-def orbit_starts(T_wc: np.ndarray, pivot: np.ndarray, degrees: float) -> list[np.ndarray]:
+def orbit_starts(T_wc: np.ndarray, pivot: np.ndarray, degrees: float, up: np.ndarray) -> list[np.ndarray]:
     """Four camera-to-world poses: ``T_wc`` orbited about ``pivot`` (world point) by -``degrees`` and
-    +``degrees`` around the world's vertical axis, then around the camera's x axis. The pivot stays
-    where it was in the image, so each start keeps the matched objects in view."""
+    +``degrees`` around the world's vertical axis ``up``, then around the camera's x axis. The pivot
+    stays where it was in the image, so each start keeps the matched objects in view."""
     out = []
-    for axis in (np.array([0.0, 0.0, 1.0]), T_wc[:3, 0]):
+    for axis in (np.asarray(up, dtype=np.float64), T_wc[:3, 0]):
         for sign in (-1.0, 1.0):
             R = Rotation.from_rotvec(np.radians(sign * degrees) * axis).as_matrix()
             out.append(geometry.make_pose(R @ T_wc[:3, :3], pivot + R @ (T_wc[:3, 3] - pivot)))
@@ -193,7 +193,7 @@ def restart(
     the same points are subsampled and the losses compare."""
     res, target_set = batch.results[best], batch.target_sets[best]
     pivot = np.mean([m.landmarks[batch.union[i].landmark].center for i in target_set], axis=0)
-    starts = orbit_starts(res.T_wc, pivot, cfg.restart_degrees)
+    starts = orbit_starts(res.T_wc, pivot, cfg.restart_degrees, m.up)
     short = dataclasses.replace(cfg, max_iterations=min(cfg.max_iterations, cfg.restart_iterations))
     hops = refine_poses(
         starts, K, batch.targets, short, seed=seed, target_sets=[target_set] * len(starts), tables=batch.tables

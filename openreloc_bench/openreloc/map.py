@@ -29,7 +29,7 @@ from openreloc_bench.errors import DataError
 from openreloc_bench.openreloc.anchors import Anchors
 
 MAP_FORMAT_VERSION = 2
-"""2: the landmarks' keypoints (anchors)."""
+"""2: the landmarks' keypoints (anchors) and the world's up."""
 MAP_FORMAT_NAME = "openreloc-map"
 EDGE_KINDS = ("knn", "overlap")
 _POINT_QUANTUM_M = 0.001  # landmark points are stored to 1 mm (coarser only for boxes > 65 m)
@@ -93,6 +93,8 @@ class ObjectMap:
     """Timings and counts (frames kept/total, skipped frames...), for reports."""
     anchors: Anchors = field(default_factory=Anchors.empty)
     """The landmarks' keypoints (none where the map was built without them)."""
+    up: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 1.0]))
+    """(3,) unit vector: the world's up, as the map builder established it (recordings are not z up)."""
 
     # ---------------------------------------------------------------------------------------- queries
 
@@ -161,6 +163,7 @@ class ObjectMap:
             "K": np.asarray(self.K, dtype=float).tolist(),
             "width": int(self.width),
             "height": int(self.height),
+            "up": np.asarray(self.up, dtype=float).tolist(),
             "encoder": self.encoder,
             "config": self.config,
             "stats": _plain(self.stats),
@@ -241,6 +244,7 @@ class ObjectMap:
             config=meta["config"],
             stats=meta["stats"],
             anchors=anchors,
+            up=np.asarray(meta["up"], dtype=np.float64).reshape(3),
         )
 
 

@@ -378,7 +378,7 @@ class OpenReLoc:
         for mt in chosen.matches:
             lm = m.landmarks[mt.landmark]
             placed.append(PlacedObject(lm.center, lm.box_min, lm.box_max, lm.category, objects[mt.query].phrase))
-        diag["explanation"] = explain_pose(T_wc, placed)
+        diag["explanation"] = explain_pose(T_wc, placed, m.up)
         return PoseEstimate(T_wc, diag)
 
     def _unfit(self, rgb: np.ndarray, K: np.ndarray) -> str | None:

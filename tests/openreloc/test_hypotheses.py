@@ -69,17 +69,20 @@ def test_a_restart_is_judged_on_the_objects_the_pose_counted(
     monkeypatch.setattr(hypotheses, "refine_poses", lambda *args, **kwargs: [hop])
     matches = [match(i, lid, "oracle") for i, lid in enumerate([1, 2, 3])]
     batch = RefinedBatch([Hypothesis("reference:0", np.eye(4), matches)], [before], matches, [[0, 1, 2]], [], None)
-    landmarks = SimpleNamespace(landmarks={lid: SimpleNamespace(center=np.full(3, float(lid))) for lid in (1, 2, 3)})
+    landmarks = SimpleNamespace(
+        landmarks={lid: SimpleNamespace(center=np.full(3, float(lid))) for lid in (1, 2, 3)},
+        up=np.array([0.0, 0.0, 1.0]),
+    )
     diag: dict = {}
     chosen = restart(batch, 0, landmarks, K, RefineConfig(), 0, diag)
     assert (chosen is hop) == wins == diag["restart"]["won"]
 
 
-@pytest.mark.parametrize("degrees", [3.0, 6.0])
-def test_orbit_starts_keep_the_pivot_in_place_and_turn_by_the_angle(degrees: float) -> None:
+@pytest.mark.parametrize(("degrees", "up"), [(3.0, (0.0, 0.0, 1.0)), (6.0, (0.0, 0.0, 1.0)), (6.0, (0.0, -1.0, 0.0))])
+def test_orbit_starts_keep_the_pivot_in_place_and_turn_by_the_angle(degrees: float, up: tuple) -> None:
     pivot = np.array([0.2, 0.8, 0.6])
     uv0, _ = geometry.project(K, T_GT, pivot[None])
-    starts = orbit_starts(T_GT, pivot, degrees)
+    starts = orbit_starts(T_GT, pivot, degrees, np.array(up))
     assert len(starts) == 4
     for T in starts:
         assert geometry.is_rigid(T)
@@ -88,6 +91,6 @@ def test_orbit_starts_keep_the_pivot_in_place_and_turn_by_the_angle(degrees: flo
         assert np.linalg.norm(T[:3, 3] - pivot) == pytest.approx(np.linalg.norm(T_GT[:3, 3] - pivot))
         assert float(geometry.rotation_error(T_GT, T)) == pytest.approx(degrees, abs=1e-6)
     # two about the world's vertical (the camera height stays), two about the camera's x axis (it does not)
-    heights = [T[2, 3] - T_GT[2, 3] for T in starts]
+    heights = [(T[:3, 3] - T_GT[:3, 3]) @ np.array(up) for T in starts]
     assert heights[0] == pytest.approx(0.0, abs=1e-9) and heights[1] == pytest.approx(0.0, abs=1e-9)
     assert min(abs(heights[2]), abs(heights[3])) > 1e-3 and heights[2] * heights[3] < 0  # up, then down

@@ -11,6 +11,7 @@ import pytest
 
 from openreloc_bench.data.mapfile import MANIFEST
 from openreloc_bench.errors import DataError
+from openreloc_bench.openreloc.anchors import Anchors
 from openreloc_bench.openreloc.map import (
     Landmark,
     ObjectMap,
@@ -49,7 +50,13 @@ def make_map(n: int = 5, dim: int = 16, seed: int = 0) -> ObjectMap:
     g.add_edge(1, 2, kind="knn")
     g.add_edge(3, 2, kind="overlap")
     K = np.array([[100.0, 0, 31.5], [0, 100, 23.5], [0, 0, 1]])
-    return ObjectMap(landmarks, rfs, g, K, 64, 48, {"name": "test"}, {"voxel": 0.02}, {"frames_total": 9})
+    anchors = Anchors(
+        rng.uniform(0, 5, (7, 3)).astype(np.float32),
+        rng.integers(0, 255, (7, 128), dtype=np.uint8),
+        np.array([1, 1, 2, 2, 2, 3, 4], np.int32),
+    )
+    up = np.array([0.0, -1.0, 0.0])  # a recording's world: gravity along +y
+    return ObjectMap(landmarks, rfs, g, K, 64, 48, {"name": "test"}, {"voxel": 0.02}, {"frames_total": 9}, anchors, up)
 
 
 def test_round_trip(tmp_path: Path) -> None:
@@ -77,6 +84,9 @@ def test_round_trip(tmp_path: Path) -> None:
         (2, 3, "overlap"),
     }
     assert set(r.graph.nodes) == set(m.landmarks)
+    for got, want in zip(vars(r.anchors).values(), vars(m.anchors).values()):
+        np.testing.assert_array_equal(got, want)
+    np.testing.assert_array_equal(r.up, m.up)
     assert (r.width, r.height, r.encoder, r.config, r.stats) == (
         64,
         48,

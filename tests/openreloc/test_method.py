@@ -259,7 +259,7 @@ def test_a_restart_replaces_the_chosen_pose_only_with_a_lower_loss(map_dir: Path
     )
     far = geometry.look_at([3.0, 3.0, 2.5], [6.0, 6.0, 2.5])  # sees none of the matched objects
     monkeypatch.setattr(
-        hypotheses_module, "orbit_starts", lambda T, pivot, degrees: [T_gt if start == "truth" else far]
+        hypotheses_module, "orbit_starts", lambda T, pivot, degrees, up: [T_gt if start == "truth" else far]
     )
     res = localizer(map_dir, association=oracle, refinement={"max_iterations": 10}).localize(q)
     assert isinstance(plain, PoseEstimate) and isinstance(res, PoseEstimate)

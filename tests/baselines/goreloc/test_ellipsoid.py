@@ -88,3 +88,14 @@ def test_fit_recovers_an_upright_ellipsoid_inscribed_in_the_points_box():
     assert np.allclose(centre, [1.0, 2.0, 0.4], atol=0.01)
     assert np.allclose(axes, half, atol=0.01)
     assert abs(abs(R_fit[:, 0] @ R[:, 0]) - 1) < 1e-3 and np.isclose(np.linalg.det(R_fit), 1.0)
+
+
+def test_fit_stands_the_ellipsoid_along_the_worlds_up():
+    rng = np.random.default_rng(2)
+    R, half = _rot_z(0.4), np.array([0.6, 0.3, 0.4])
+    z_up = rng.uniform(-1, 1, (5000, 3)) * half @ R.T + [1.0, 2.0, 0.4]
+    to_y_down = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])  # a 7-Scenes-like world
+    centre, R_fit, axes = fit_ellipsoid(z_up @ to_y_down.T, trim=0.0, up=to_y_down @ [0.0, 0.0, 1.0])
+    assert np.allclose(centre, to_y_down @ [1.0, 2.0, 0.4], atol=0.01)
+    assert np.allclose(axes, half, atol=0.01)
+    assert np.allclose(R_fit[:, 2], [0.0, -1.0, 0.0], atol=1e-9)  # the vertical semi-axis is up

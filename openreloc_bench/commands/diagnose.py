@@ -181,6 +181,8 @@ def stage_lines(split: str, st: dict[str, Any]) -> list[str]:
         f" (medians); matches {num(st['matches_per_query'])} per query ({how})",
         f"  vision and language agree on {num(st['modalities_agree'])}% of associated matches; verification"
         f" finds a pose for {num(st['verification_pass_rate'])}% of the queries it sees",
+        f"  poses from keypoints ({num(st['keypoint_pose']['share'])}%): {recall(st['keypoint_pose'])}",
+        f"  poses from objects ({num(st['object_pose']['share'])}%):   {recall(st['object_pose'])}",
         f"  coarse prior (first reference frame): {recall(st['coarse_prior'])}",
         f"  best reference start:                {recall(st['best_reference_start'])}",
         f"  refinement start (chosen):           {recall(st['refinement_start'])}",

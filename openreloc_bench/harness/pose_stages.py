@@ -38,6 +38,10 @@ class QueryStages:
     """Accepted matches by how they were made."""
     verification_inliers: int | None = None
     """Objects the verification's consensus pose explains (None: the query never reached it)."""
+    anchor_inliers: int | None = None
+    """Keypoints that agree with the keypoint pose (None: no keypoint pose was tried or found)."""
+    chosen: str | None = None
+    """Where the returned pose comes from: 'anchors' (the keypoint pose) or a refined hypothesis."""
     prior: tuple[float, float] = (np.inf, np.inf)
     """The coarse prior: the reference frame ranked first (paper Eq. 6)."""
     best_reference: tuple[float, float] = (np.inf, np.inf)
@@ -84,11 +88,14 @@ def query_stages(
         if h["source"].startswith("reference:")
     ]
     ver = diag.get("verification")
+    anchors = diag.get("anchors", {})
     return QueryStages(
         detected=int(diag.get("detected", 0)),
         unique=int(diag.get("unique", 0)),
         matches=Counter(mt["how"] for mt in diag.get("matches", [])),
         verification_inliers=None if ver is None else int(ver.get("inliers", 0)),
+        anchor_inliers=anchors.get("inliers"),
+        chosen=diag.get("chosen"),
         prior=error(frames.get(prior)) if prior is not None else (np.inf, np.inf),
         best_reference=min(starts, default=(np.inf, np.inf)),
         start=error(diag.get("prior_T_wc")),
@@ -116,6 +123,8 @@ def summarize_stages(rows: list[QueryStages]) -> dict[str, Any]:
     verified = [q.verification_inliers for q in rows if q.verification_inliers is not None]
     refined = [q for q in rows if np.isfinite(q.final[0]) and np.isfinite(q.start[0])]
     wrong = [q for q in rows if not q.final[0] < RIGHT_M]
+    by_keypoints = [q for q in rows if q.chosen == "anchors"]
+    by_objects = [q for q in rows if q.chosen is not None and q.chosen != "anchors"]
 
     def pct(k: int, of: int) -> float | None:
         return 100.0 * k / of if of else None
@@ -128,6 +137,8 @@ def summarize_stages(rows: list[QueryStages]) -> dict[str, Any]:
         "matches_by_how": {h: pct(matched[h], n_matches) for h in HOWS},
         "modalities_agree": pct(matched["agree"], n_matches - matched["verified"]),
         "verification_pass_rate": pct(sum(v > 0 for v in verified), len(verified)),
+        "keypoint_pose": _recall([q.final for q in by_keypoints]) | {"share": pct(len(by_keypoints), n)},
+        "object_pose": _recall([q.final for q in by_objects]) | {"share": pct(len(by_objects), n)},
         "coarse_prior": _recall([q.prior for q in rows]),
         "best_reference_start": _recall([q.best_reference for q in rows]),
         "refinement_start": _recall([q.start for q in rows]),

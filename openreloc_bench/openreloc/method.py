@@ -282,12 +282,13 @@ class OpenReLoc:
             masks, occluders = self._segment(rgb, query.instance)
         diag["detected"] = len(masks)
         if len(masks) < cfg.min_objects:
-            return Failure(f"{len(masks)} object(s) detected, need at least {cfg.min_objects}", diag)
+            failure = Failure(f"{len(masks)} object(s) detected, need at least {cfg.min_objects}", diag)
+            return self._few_objects(rgb, K, masks, failure, stage)
 
         invalid = frozenset() if cfg.no_filtering else frozenset(set(self.ids) - set(m.valid_ids()))
         associated = self._associate(rgb, masks, query.instance is not None, invalid, diag, stage)
         if isinstance(associated, Failure):
-            return associated
+            return self._few_objects(rgb, K, masks, associated, stage)
         objects, matches, appearance = associated
 
         verified: np.ndarray | None = None  # the verification's pose, when it finds one
@@ -297,7 +298,8 @@ class OpenReLoc:
                 matches, verified, modes = self._verify(matches, objects, invalid, K, diag)
         diag["matches"] = [_match_diag(mt, objects, m) for mt in matches]
         if len(matches) < cfg.min_matches:
-            return Failure(f"{len(matches)} landmark(s) associated, need at least {cfg.min_matches}", diag)
+            failure = Failure(f"{len(matches)} landmark(s) associated, need at least {cfg.min_matches}", diag)
+            return self._few_objects(rgb, K, masks, failure, stage)
 
         with stage("retrieve"):
             hypotheses = coarse_hypotheses(matches, objects, m, K, cfg.coarse, cfg.retrieval, cfg.no_coarse, diag)
@@ -435,6 +437,41 @@ class OpenReLoc:
             # objects that look most like them, instead of forcing those onto a valid look-alike
             return objects, associate(objects, self.ids, self.descriptors, graph, cfg.association, invalid), appearance
 
+    def _few_objects(
+        self, rgb: np.ndarray, K: np.ndarray, masks: list[ObjectMask], failure: Failure, stage: Stage
+    ) -> PoseEstimate | Failure:
+        """Too few objects to place the camera by them (``failure`` says why): the keypoints of the
+        landmarks the detected segments look like, and of those a reference frame sees with them, may
+        still place it. The segments retrieve, as in the full pipeline; without any, ``failure``."""
+        if self.anchor_index is None or not masks or not self.ids:
+            return failure
+        with stage("encode"):
+            sims = self._embed(rgb, masks) @ self.descriptors.T
+        k = min(self.config.association.top_k, len(self.ids))
+        rows = np.unique(np.argsort(-sims, axis=1, kind="stable")[:, :k])
+        rows = np.flatnonzero(self.covisible[rows].any(axis=0) | np.isin(np.arange(len(self.ids)), rows))
+        diag = failure.diagnostics
+        diag["anchors"] = {}
+        with stage("anchors"):
+            anchored = self.anchor_index.localize(
+                rgb, K, {self.ids[r] for r in rows}, self.config.anchors, self.config.seed, diag["anchors"]
+            )
+        if anchored is None or anchored.inliers < self.config.anchors.min_inliers:
+            return failure
+        diag["chosen"] = "anchors"
+        diag["prior_T_wc"] = np.round(anchored.T_wc, 6).tolist()
+        return PoseEstimate(anchored.T_wc, diag)
+
+    def _embed(self, rgb: np.ndarray, masks: list[ObjectMask]) -> np.ndarray:
+        """(masks, D) image embeddings of the masks' padded crops."""
+        m = self.map
+        assert m is not None
+        crops = [
+            rgb[y0:y1, x0:x1]
+            for x0, y0, x1, y1 in (pad_box(mk.box, self.crop_padding, m.width, m.height) for mk in masks)
+        ]
+        return self.encoder.encode_images(crops)
+
     def _anchor_pose(
         self, rgb: np.ndarray, K: np.ndarray, hypotheses: list[Hypothesis], diag: dict[str, Any]
     ) -> AnchorPose | None:
@@ -468,11 +505,7 @@ class OpenReLoc:
         cfg, m = self.config, self.map
         assert m is not None
         with stage("encode"):
-            crops = [
-                rgb[y0:y1, x0:x1]
-                for x0, y0, x1, y1 in (pad_box(mk.box, self.crop_padding, m.width, m.height) for mk in masks)
-            ]
-            visual = self.encoder.encode_images(crops)
+            visual = self._embed(rgb, masks)
             gammas = uniqueness(visual, self.descriptors)
             keep = np.flatnonzero(unique_mask(gammas, cfg.association))
             keep = keep[np.argsort(-gammas[keep], kind="stable")][: cfg.max_objects]

@@ -28,6 +28,8 @@ def test_a_query_right_at_its_prior_and_wrong_after_refinement() -> None:
         "reference_frame": {"index": 0},
         "hypotheses": [{"source": "reference:4"}, {"source": "reference:0"}, {"source": "pnp"}],
         "prior_T_wc": geometry.make_pose(np.eye(3), [0.2, 0.0, 0.0]).tolist(),
+        "anchors": {"keypoints": 300, "inliers": 12},
+        "chosen": "reference:0",
     }
     q = query_stages(diag, geometry.make_pose(np.eye(3), [1.1, 0.0, 0.0]), truth, tiny_map())
     assert q.prior[0] == pytest.approx(0.1) and q.best_reference[0] == pytest.approx(0.1)
@@ -38,6 +40,7 @@ def test_a_query_right_at_its_prior_and_wrong_after_refinement() -> None:
     assert s["refinement_worse"] == 100.0 and s["wrong_with_right_prior"] == 50.0
     assert s["modalities_agree"] == 50.0 and s["verification_pass_rate"] == 100.0
     assert s["failures"] == {"object(s) detected, need at least": 1}
+    assert q.anchor_inliers == 12 and s["object_pose"]["share"] == 50.0 and s["keypoint_pose"]["share"] == 0.0
     # the per-query record survives JSON (no NaN, no Infinity) and pools the same
     text = json.dumps([q.to_dict(), failed.to_dict()], allow_nan=False)
     assert pool_stages([json.loads(text)]) == s

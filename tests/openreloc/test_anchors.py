@@ -102,3 +102,18 @@ def test_switched_off_the_object_pose_stands(room: tuple[Scene, Path]) -> None:
     f = scene.sequence("query_near")[0]
     res = method.localize(QueryFrame(f.name, f.color, f.K, f.instance))
     assert "anchors" not in res.diagnostics and res.diagnostics.get("chosen") != "anchors"
+
+
+def test_too_few_objects_still_place_the_camera_by_the_keypoints_they_retrieve(room: tuple[Scene, Path]) -> None:
+    scene, map_dir = room
+    f = scene.sequence("query_near")[0]
+    query = QueryFrame(f.name, f.color, f.K, f.instance)
+    for anchors in (True, False):
+        method = create_method("openreloc", min_objects=50, anchors={"enabled": anchors})  # every view "sees too few"
+        method.load_map(map_dir)
+        res = method.localize(query)
+        if anchors:
+            assert isinstance(res, PoseEstimate) and res.diagnostics["chosen"] == "anchors"
+            assert geometry.pose_errors(f.T_wc, res.T_wc)[0] < 0.05
+        else:
+            assert res.reason.endswith("object(s) detected, need at least 50")

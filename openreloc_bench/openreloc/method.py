@@ -454,7 +454,7 @@ class OpenReLoc:
         diag["anchors"] = {}
         with stage("anchors"):
             anchored = self.anchor_index.localize(
-                rgb, K, {self.ids[r] for r in rows}, self.config.anchors, self.config.seed, diag["anchors"]
+                rgb, K, {self.ids[r] for r in rows}, [], self.config.anchors, self.config.seed, diag["anchors"]
             )
         if anchored is None or anchored.inliers < self.config.anchors.min_inliers:
             return failure
@@ -483,7 +483,10 @@ class OpenReLoc:
             if h.frame is not None:
                 landmarks |= self.frame_landmarks[h.frame]
         diag["anchors"] = {}
-        return self.anchor_index.localize(rgb, K, landmarks, self.config.anchors, self.config.seed, diag["anchors"])
+        views = [h.T_wc for h in hypotheses]
+        return self.anchor_index.localize(
+            rgb, K, landmarks, views, self.config.anchors, self.config.seed, diag["anchors"]
+        )
 
     def _explainer(self, masks: list[ObjectMask], appearance: np.ndarray | None, K: np.ndarray) -> Compare:
         """The render-and-compare score (:mod:`.consistency`) of camera-to-world poses against all query

@@ -13,7 +13,14 @@ from generators.spec import SceneSpec
 from openreloc_bench import geometry
 from openreloc_bench.data.scene import Scene
 from openreloc_bench.methods import PoseEstimate, QueryFrame, create_method
-from openreloc_bench.openreloc.anchors import AnchorBuildConfig, AnchorConfig, Anchors, _thin, match_anchors
+from openreloc_bench.openreloc.anchors import (
+    AnchorBuildConfig,
+    AnchorConfig,
+    Anchors,
+    _thin,
+    in_some_view,
+    match_anchors,
+)
 from openreloc_bench.openreloc.map import ObjectMap
 
 TINY = dict(
@@ -53,6 +60,16 @@ def test_ratio_test_rivals_only_anchors_lying_elsewhere() -> None:
     apart = xyz.copy()
     apart[1] = [0.5, 0, 0]  # now it lies elsewhere, and is too alike to pass the ratio test
     assert len(match_anchors(query, d, apart, cfg)[0]) == 0
+
+
+def test_only_anchors_near_some_view_are_candidates() -> None:
+    K = geometry.intrinsics(100.0, 100.0, 50.0, 40.0)
+    T = geometry.look_at([0.0, 0.0, 0.0], [0.0, 1.0, 0.0])  # looking along +y, image 100x80
+    xyz = np.array([[0, 2, 0], [1.4, 2, 0], [3, 2, 0], [0, -2, 0]], np.float32)  # centre, margin, far, behind
+    assert in_some_view(xyz, [T], K, (100, 80), 0.5).tolist() == [True, True, False, False]
+    assert in_some_view(xyz, [T], K, (100, 80), 0.0).tolist() == [True, False, False, False]
+    behind = geometry.look_at([0.0, 0.0, 0.0], [0.0, -1.0, 0.0])
+    assert in_some_view(xyz, [T, behind], K, (100, 80), 0.0).tolist() == [True, False, False, True]
 
 
 @pytest.fixture(scope="module")

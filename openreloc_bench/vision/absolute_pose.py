@@ -13,6 +13,7 @@ import numpy as np
 import pycolmap
 
 from openreloc_bench import geometry
+from openreloc_bench.config import check_ranges
 
 
 @dataclass
@@ -29,8 +30,9 @@ class AbsolutePoseConfig:
     """RANSAC random seed (localization is reproducible)."""
 
     def __post_init__(self) -> None:
-        if self.max_error_px <= 0 or not 0 < self.confidence < 1 or self.max_iterations < 1:
-            raise ValueError("need max_error_px > 0, 0 < confidence < 1 and max_iterations >= 1")
+        check_ranges(self, positive=("max_error_px",), non_negative=("seed",), at_least_one=("max_iterations",))
+        if not 0 < self.confidence < 1:
+            raise ValueError(f"'confidence' must be in (0, 1), got {self.confidence!r}")
 
 
 @dataclass

@@ -9,6 +9,7 @@ import pytest
 
 from openreloc_bench.errors import ConfigError, DataError
 from openreloc_bench.harness import cache, campaign, runner
+from openreloc_bench.harness.ablations import ABLATION_ROWS
 from openreloc_bench.harness.leaderboard import campaign_page
 
 SUITE = "name: tiny\nscenes:\n  - {name: t1, seed: 3, width: 32, height: 24, n_query: 2, max_mapping_frames: 2, n_displaced: 0}\n"
@@ -64,13 +65,17 @@ def test_ablations_run_last_on_their_suites(plan: campaign.CampaignPlan) -> None
     last = campaign.plan_steps(plan)[-1]
     assert (last.key, last.ablations, last.splits) == ("ablations/tiny/oracle-mask/openreloc", True, ("query",))
     labels = [r.label for r in runner.variant_runs([last.method], {}, True)]
-    assert labels[0] == "openreloc" and len(labels) == 11 and all(x.startswith("openreloc+") for x in labels[1:])
+    assert (
+        labels[0] == "openreloc"
+        and len(labels) == 1 + len(ABLATION_ROWS)
+        and all(x.startswith("openreloc+") for x in labels[1:])
+    )
 
 
 def test_each_step_counts_only_the_runs_no_earlier_step_made(plan: campaign.CampaignPlan) -> None:
     plan.ablation_suites = ["tiny"]
     # the seeds stage repeats seed 0 (already run); the ablation step adds every ablation row
-    assert campaign.new_jobs(campaign.plan_steps(plan)) == [1, 1, 1, 1, 1, 1, 1, 1, 11]
+    assert campaign.new_jobs(campaign.plan_steps(plan)) == [1, 1, 1, 1, 1, 1, 1, 1, 1 + len(ABLATION_ROWS)]
 
 
 def test_further_seeds_build_maps_only_where_the_map_depends_on_the_seed(plan: campaign.CampaignPlan) -> None:

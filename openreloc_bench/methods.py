@@ -61,6 +61,9 @@ class PoseEstimate:
     """4x4 camera-to-world pose, OpenCV axes."""
     diagnostics: dict[str, Any] = field(default_factory=dict)
     """Free-form, JSON-serialisable: matches, timings, explanation..."""
+    confidence: float = float("nan")
+    """How sure the method is of this pose (higher is surer, on the method's own scale, e.g. inliers),
+    NaN when it does not say; the harness records it with the query's error."""
 
 
 @dataclass
@@ -105,6 +108,8 @@ class Answer:
     """Why there is no pose ("" when there is one)."""
     diagnostics: dict[str, Any] = field(default_factory=dict)
     """The method's diagnostics of its pose or failure (none when it raised or answered something else)."""
+    confidence: float = float("nan")
+    """The method's confidence in the pose (NaN when none, or when it is not a real number)."""
 
 
 def localize_safely(method: Relocalizer, query: QueryFrame) -> Answer:
@@ -131,7 +136,15 @@ def localize_safely(method: Relocalizer, query: QueryFrame) -> Answer:
         T = None
     if T is None or T.shape != (4, 4) or not geometry.is_rigid(T):
         return Answer(query.name, None, seconds, "invalid pose (not a finite rigid 4x4 transform)", res.diagnostics)
-    return Answer(query.name, T, seconds, "", res.diagnostics)
+    return Answer(query.name, T, seconds, "", res.diagnostics, _real(res.confidence))
+
+
+def _real(value: Any) -> float:
+    """``value`` as a float, NaN when it is not a real number (a method's confidence is never an error)."""
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        return float("nan")
 
 
 _REGISTRY: dict[str, Callable[..., Relocalizer]] = {}

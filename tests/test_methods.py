@@ -110,3 +110,13 @@ def test_a_rigid_pose_is_the_answer_with_its_diagnostics() -> None:
     got = localize_safely(Answering(PoseEstimate(POSE.tolist(), {"matches": [1, 2]})), query)  # type: ignore[arg-type]
     assert got.reason == "" and got.diagnostics == {"matches": [1, 2]}
     assert got.T_wc is not None and got.T_wc.dtype == np.float64 and np.array_equal(got.T_wc, POSE)
+    assert np.isnan(got.confidence)  # the method did not say
+
+
+@pytest.mark.parametrize(
+    ("confidence", "recorded"), [(42, 42.0), (np.float32(0.5), 0.5), ("high", np.nan), (None, np.nan)]
+)
+def test_a_pose_carries_the_methods_confidence_a_non_number_none(confidence: Any, recorded: float) -> None:
+    query = QueryFrame("query/000003", np.zeros((4, 4, 3), np.uint8), np.eye(3))
+    got = localize_safely(Answering(PoseEstimate(POSE, confidence=confidence)), query)  # type: ignore[arg-type]
+    assert got.reason == "" and np.array_equal([got.confidence], [recorded], equal_nan=True)

@@ -156,7 +156,7 @@ def open_queries(job: QueryJob) -> tuple[Callable[[int], Outcome], float]:
 
     def answer(i: int) -> Outcome:
         got = localize_safely(method, QueryFrame.from_frame(seq[i], job.track))
-        return Outcome(got.name, got.T_wc, got.seconds, got.reason)
+        return Outcome(got.name, got.T_wc, got.seconds, got.reason, got.confidence)
 
     return answer, load_s
 

@@ -29,11 +29,12 @@ class Outcome:
     runtime_s: float = float("nan")
     reason: str = ""
     confidence: float = float("nan")
-    """The submission's confidence in the estimate (map-free's column), NaN where none was given."""
+    """The method's or submission's confidence in the estimate (map-free's column), NaN where none was given."""
 
 
 def score_split(seq: SceneSequence, outcomes: dict[str, Outcome]) -> pd.DataFrame:
-    """One row per ground-truth query of ``seq`` (columns :data:`~openreloc_bench.data.runs.QUERY_COLUMNS`).
+    """One row per ground-truth query of ``seq`` (columns :data:`~openreloc_bench.data.runs.QUERY_COLUMNS`,
+    then ``confidence``: the outcome's, NaN for a failure or where none was given).
 
     Queries without an outcome are failures ("missing"); outcomes for names that are not queries of
     this split are a caller error (the pose file names the wrong split or frames).
@@ -45,6 +46,7 @@ def score_split(seq: SceneSequence, outcomes: dict[str, Outcome]) -> pd.DataFram
     gt = seq.poses
     est = np.full_like(gt, np.nan)
     runtime = np.full(len(names), np.nan)
+    confidence = np.full(len(names), np.nan)
     reasons = []
     for i, n in enumerate(names):
         o = outcomes.get(n)
@@ -54,6 +56,7 @@ def score_split(seq: SceneSequence, outcomes: dict[str, Outcome]) -> pd.DataFram
         runtime[i] = o.runtime_s
         if o.T_wc is not None:
             est[i] = o.T_wc
+            confidence[i] = o.confidence
         reasons.append(o.reason if o.T_wc is None else "")
     t_err, r_err = geometry.pose_errors(gt, est)
     ok = np.isfinite(t_err) & np.isfinite(r_err)
@@ -63,7 +66,7 @@ def score_split(seq: SceneSequence, outcomes: dict[str, Outcome]) -> pd.DataFram
         "query": names, "success": ok, "t_err_m": t_err, "r_err_deg": r_err, "runtime_s": runtime,
         "reason": [r or ("" if s else "no estimate") for r, s in zip(reasons, ok)],
         "gt_x": gt[:, 0, 3], "gt_y": gt[:, 1, 3], "gt_z": gt[:, 2, 3],
-        "est_x": est[:, 0, 3], "est_y": est[:, 1, 3], "est_z": est[:, 2, 3],
+        "est_x": est[:, 0, 3], "est_y": est[:, 1, 3], "est_z": est[:, 2, 3], "confidence": confidence,
     })  # fmt: skip
 
 
@@ -223,7 +226,6 @@ def score_submission(
             seq = scene.sequence(split)
             outcomes = submission_outcomes(submission, name, seq, scene.splits(), names) or {}
             df = score_split(seq, outcomes)
-            df["confidence"] = [outcomes[n].confidence if n in outcomes else float("nan") for n in df["query"]]
             df = with_difficulty(df, scene, split)
             meta = {
                 "method": method,

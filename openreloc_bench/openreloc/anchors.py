@@ -86,6 +86,10 @@ class AnchorConfig:
     max_anchors: int = 40_000
     """At most this many candidate anchors are matched (a seeded random subset of more): the matching
     index is built per query, and its time grows with them."""
+    keep_prior: bool = True
+    """Reject a refinement that leaves its keypoint evidence: where the refined pose explains fewer
+    keypoint matches than its starting prior (and the prior at least ``seed_inliers``), the prior is
+    returned instead."""
     pose: AbsolutePoseConfig = field(default_factory=lambda: AbsolutePoseConfig(max_iterations=2000))
     """LO-RANSAC and refinement of the keypoint pose."""
 
@@ -173,6 +177,30 @@ class AnchorPose:
     """Query keypoints matched (the ratio test's survivors)."""
     landmarks: dict[int, int]
     """Landmark id -> inliers on it."""
+    points2d: np.ndarray
+    """(matches, 2) the matched query keypoints' pixels."""
+    points3d: np.ndarray
+    """(matches, 3) their anchors' world points."""
+
+    def support(self, T_wc: np.ndarray, K: np.ndarray, max_error_px: float) -> int:
+        """Matches that project within ``max_error_px`` of their keypoint at camera-to-world ``T_wc``:
+        the keypoint evidence for any pose, the object stages' too."""
+        uv, z = geometry.project(K, T_wc, self.points3d)
+        return int(((z > 0) & (np.linalg.norm(uv - self.points2d, axis=1) < max_error_px)).sum())
+
+
+def refined_or_prior(
+    anchored: AnchorPose | None, prior: np.ndarray, refined: np.ndarray, K: np.ndarray, cfg: AnchorConfig
+) -> tuple[np.ndarray, float]:
+    """The pose an object-stage refinement ends at and its confidence (keypoint support; NaN without
+    keypoint matches): ``refined``, unless :attr:`AnchorConfig.keep_prior` finds that it leaves the
+    keypoint evidence its ``prior`` had."""
+    if anchored is None:
+        return refined, float("nan")
+    at_prior, at_refined = (anchored.support(T, K, cfg.pose.max_error_px) for T in (prior, refined))
+    if cfg.keep_prior and at_prior >= cfg.seed_inliers and at_refined < at_prior:
+        return prior, float(at_prior)
+    return refined, float(at_refined)
 
 
 class AnchorIndex:
@@ -215,7 +243,10 @@ class AnchorIndex:
         owners = self.anchors.landmark[rows[mapped[pose.inliers]]]
         ids, counts = np.unique(owners, return_counts=True)
         diag["inliers"] = pose.n_inliers
-        return AnchorPose(pose.T_wc, pose.n_inliers, len(query), dict(zip(ids.tolist(), counts.tolist())))
+        by_landmark = dict(zip(ids.tolist(), counts.tolist()))
+        return AnchorPose(
+            pose.T_wc, pose.n_inliers, len(query), by_landmark, feats.xy[query], self.anchors.xyz[rows[mapped]]
+        )
 
 
 def in_some_view(

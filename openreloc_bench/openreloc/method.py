@@ -38,7 +38,7 @@ from openreloc_bench.config import check_ranges
 from openreloc_bench.data.types import SceneSequence
 from openreloc_bench.errors import DataError
 from openreloc_bench.methods import Failure, PoseEstimate, QueryFrame
-from openreloc_bench.openreloc.anchors import AnchorConfig, AnchorIndex, AnchorPose
+from openreloc_bench.openreloc.anchors import AnchorConfig, AnchorIndex, AnchorPose, refined_or_prior
 from openreloc_bench.openreloc.association import (
     AssociationConfig,
     Match,
@@ -308,12 +308,14 @@ class OpenReLoc:
                 hypotheses.append(Hypothesis("verified", verified, matches))
         if not hypotheses:
             return Failure("no reference frame shares a matched landmark", diag)
+        anchored = None
         if self.anchor_index is not None:
             with stage("anchors"):
                 anchored = self._anchor_pose(rgb, K, hypotheses + modes, diag)
             if anchored is not None and anchored.inliers >= cfg.anchors.min_inliers:
                 diag["chosen"] = "anchors"
-                return self._estimate(anchored.T_wc, Hypothesis("anchors", anchored.T_wc, matches), objects, diag)
+                keypoints = Hypothesis("anchors", anchored.T_wc, matches)
+                return self._estimate(anchored.T_wc, keypoints, objects, diag, anchored.inliers)
             if anchored is not None and anchored.inliers >= cfg.anchors.seed_inliers:
                 hypotheses.append(Hypothesis("anchors", anchored.T_wc, matches))
         compare = _timed(stage, "compare", self._explainer(masks, appearance, K))
@@ -331,7 +333,7 @@ class OpenReLoc:
         if cfg.consistency.enabled:
             drawn = compare([r.T_wc for r in batch.results])
             explained = [e if np.isfinite(r.loss) else 0.0 for r, e in zip(batch.results, drawn)]
-        return self._choose(batch, explained, matches, objects, K, diag, stage)
+        return self._choose(batch, explained, matches, objects, K, diag, stage, anchored)
 
     def _choose(
         self,
@@ -342,9 +344,11 @@ class OpenReLoc:
         K: np.ndarray,
         diag: dict[str, Any],
         stage: Stage,
+        anchored: AnchorPose | None,
     ) -> PoseEstimate | Failure:
         """The refined hypothesis that render-and-compare and the ICP loss choose, restarted
-        (``refinement.restart_degrees``); without refinement, its starting pose."""
+        (``refinement.restart_degrees``), or its prior where refinement leaves the keypoint evidence
+        (:func:`.anchors.refined_or_prior`); without refinement, its starting pose."""
         cfg, m = self.config, self.map
         assert m is not None
         best = choose_hypothesis([r.loss for r in batch.results], explained, cfg.consistency.tie_share)
@@ -357,7 +361,8 @@ class OpenReLoc:
         diag["hypotheses"] = batch_diag(batch, explained)
         diag["chosen"] = chosen.source
         if cfg.no_refine:
-            return self._estimate(chosen.T_wc, chosen, objects, diag)
+            T_wc, confidence = refined_or_prior(anchored, chosen.T_wc, chosen.T_wc, K, cfg.anchors)
+            return self._estimate(T_wc, chosen, objects, diag, confidence)
         diag["refine"] = {
             "iterations": res.iterations,
             "initial_loss": rounded(res.initial_loss),
@@ -367,12 +372,20 @@ class OpenReLoc:
         }
         if res.reason is not None:
             return Failure(res.reason, diag)
-        return self._estimate(res.T_wc, chosen, objects, diag)
+        T_wc, confidence = refined_or_prior(anchored, chosen.T_wc, res.T_wc, K, cfg.anchors)
+        diag["refine"]["kept_prior"] = T_wc is chosen.T_wc
+        return self._estimate(T_wc, chosen, objects, diag, confidence)
 
     def _estimate(
-        self, T_wc: np.ndarray, chosen: Hypothesis, objects: list[QueryObject], diag: dict[str, Any]
+        self,
+        T_wc: np.ndarray,
+        chosen: Hypothesis,
+        objects: list[QueryObject],
+        diag: dict[str, Any],
+        confidence: float = float("nan"),
     ) -> PoseEstimate:
-        """The pose, with the chosen hypothesis' start and a placement among its matched objects."""
+        """The pose and its confidence, with the chosen hypothesis' start and a placement among its
+        matched objects."""
         m = self.map
         assert m is not None
         diag["prior_T_wc"] = np.round(chosen.T_wc, 6).tolist()
@@ -381,7 +394,7 @@ class OpenReLoc:
             lm = m.landmarks[mt.landmark]
             placed.append(PlacedObject(lm.center, lm.box_min, lm.box_max, lm.category, objects[mt.query].phrase))
         diag["explanation"] = explain_pose(T_wc, placed, m.up)
-        return PoseEstimate(T_wc, diag)
+        return PoseEstimate(T_wc, diag, confidence)
 
     def _unfit(self, rgb: np.ndarray, K: np.ndarray) -> str | None:
         """Why a query image and its intrinsics do not fit the map's camera, if they do not."""
@@ -460,7 +473,7 @@ class OpenReLoc:
             return failure
         diag["chosen"] = "anchors"
         diag["prior_T_wc"] = np.round(anchored.T_wc, 6).tolist()
-        return PoseEstimate(anchored.T_wc, diag)
+        return PoseEstimate(anchored.T_wc, diag, anchored.inliers)
 
     def _embed(self, rgb: np.ndarray, masks: list[ObjectMask]) -> np.ndarray:
         """(masks, D) image embeddings of the masks' padded crops."""

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-from harness_test_methods import DIFFICULTY, difficulty_scene, make_scene
+from harness_test_methods import DIFFICULTY, ORACLE_CONFIDENCE, difficulty_scene, make_scene
 
 from openreloc_bench.data import io
 from openreloc_bench.data.results import read_results, read_tum_trajectory
@@ -239,6 +239,7 @@ def test_query_tables_carry_the_scene_difficulty_and_older_tables_still_load(tmp
     light = pd.read_csv(runs / "sD" / "query_light1.queries.csv")
     np.testing.assert_array_equal(light["gap_deg"], [25.0, np.nan, 90.0])  # frame 000001 has no row
     assert light["data_version"].tolist() == [2, 2, 2]
+    assert light["confidence"].tolist() == [ORACLE_CONFIDENCE] * 3  # what the method said of each pose
     q = load_run_queries(out, uses_masks).set_index(["scene", "query"])
     assert q.loc[("sD", "query/000001"), "visible_objects"] == 2 and q.loc[("sD", "query/000002"), "gap_m"] == 1.5
     plain = q.loc["sP"]

@@ -17,7 +17,8 @@ def test_score_split_rows(data_dir: Path) -> None:
     seq = Scene(data_dir / "sA").sequence("query")
     n0, n1, n2 = seq.names
     df = score_split(
-        seq, {n0: Outcome(n0, perturb(seq.poses[0], n0, 0.2, 3.0), 0.5), n1: Outcome(n1, None, 0.1, "lost")}
+        seq,
+        {n0: Outcome(n0, perturb(seq.poses[0], n0, 0.2, 3.0), 0.5, confidence=7.0), n1: Outcome(n1, None, 0.1, "lost")},
     )
     assert df["query"].tolist() == [n0, n1, n2]
     assert df["success"].tolist() == [True, False, False]
@@ -27,6 +28,7 @@ def test_score_split_rows(data_dir: Path) -> None:
     assert df["runtime_s"][0] == 0.5 and np.isnan(df["runtime_s"][2])
     np.testing.assert_allclose(df[["gt_x", "gt_y", "gt_z"]].to_numpy(), seq.poses[:, :3, 3])
     assert np.isnan(df["est_x"][1])
+    assert df["confidence"][0] == 7.0 and df["confidence"][1:].isna().all()  # none for a failure
 
 
 def test_unknown_query_names_are_rejected(data_dir: Path) -> None:

@@ -16,10 +16,12 @@ from openreloc_bench.methods import PoseEstimate, QueryFrame, create_method
 from openreloc_bench.openreloc.anchors import (
     AnchorBuildConfig,
     AnchorConfig,
+    AnchorPose,
     Anchors,
     _thin,
     in_some_view,
     match_anchors,
+    refined_or_prior,
 )
 from openreloc_bench.openreloc.map import ObjectMap
 
@@ -72,6 +74,34 @@ def test_only_anchors_near_some_view_are_candidates() -> None:
     assert in_some_view(xyz, [T, behind], K, (100, 80), 0.0).tolist() == [True, False, False, True]
 
 
+def keypoint_evidence(T_wc: np.ndarray, K: np.ndarray, n: int) -> AnchorPose:
+    """``n`` keypoint matches of points 2-4 m in front of ``T_wc``, exact at it."""
+    rng = np.random.default_rng(0)
+    xyz_c = np.column_stack([rng.uniform(-1, 1, (n, 2)), rng.uniform(2, 4, n)])
+    xyz = geometry.transform_points(T_wc, xyz_c)
+    return AnchorPose(T_wc, n, n, {}, geometry.project(K, T_wc, xyz)[0], xyz)
+
+
+def test_a_refinement_that_leaves_its_keypoint_evidence_keeps_the_prior() -> None:
+    K = geometry.intrinsics(300.0, 300.0, 160.0, 120.0)
+    prior = geometry.look_at([0.0, 0.0, 0.0], [0.0, 1.0, 0.0])
+    evidence = keypoint_evidence(prior, K, 30)
+    drifted = prior.copy()
+    drifted[:3, 3] += [0.3, 0.0, 0.0]  # 30 cm sideways: the keypoints no longer reproject
+    cfg = AnchorConfig()
+    assert evidence.support(prior, K, 8.0) == 30 and evidence.support(drifted, K, 8.0) < 30
+    T, confidence = refined_or_prior(evidence, prior, drifted, K, cfg)
+    assert T is prior and confidence == 30
+    assert refined_or_prior(evidence, prior, drifted, K, AnchorConfig(keep_prior=False))[0] is drifted
+    near = prior.copy()
+    near[:3, 3] += [0.001, 0.0, 0.0]  # a millimetre: the same support, the refinement stands
+    assert refined_or_prior(evidence, prior, near, K, cfg) == (near, 30.0)
+    weak = keypoint_evidence(prior, K, cfg.seed_inliers - 1)  # too little evidence to overrule refinement
+    assert refined_or_prior(weak, prior, drifted, K, cfg)[0] is drifted
+    T, confidence = refined_or_prior(None, prior, drifted, K, cfg)  # no keypoint matches at all
+    assert T is drifted and np.isnan(confidence)
+
+
 @pytest.fixture(scope="module")
 def room(tmp_path_factory: pytest.TempPathFactory) -> tuple[Scene, Path]:
     root = tmp_path_factory.mktemp("anchors")
@@ -107,6 +137,7 @@ def test_queries_are_placed_by_their_keypoints_within_centimetres(room: tuple[Sc
         if res.diagnostics["chosen"] == "anchors":
             anchored += 1
             assert res.diagnostics["anchors"]["inliers"] >= method.config.anchors.min_inliers
+            assert res.confidence == res.diagnostics["anchors"]["inliers"]
             t, r = geometry.pose_errors(f.T_wc, res.T_wc)
             assert t < 0.05 and r < 2.0
     assert anchored >= len(seq) // 2

@@ -184,10 +184,10 @@ def stage_lines(split: str, st: dict[str, Any]) -> list[str]:
         f"  poses from keypoints ({num(st['keypoint_pose']['share'])}%): {recall(st['keypoint_pose'])}",
         f"  poses from objects ({num(st['object_pose']['share'])}%):   {recall(st['object_pose'])}",
         f"  coarse prior (first reference frame): {recall(st['coarse_prior'])}",
-        f"  best reference start:                {recall(st['best_reference_start'])}",
+        f"  best reference start (object poses):  {recall(st['best_reference_start'])}",
         f"  refinement start (chosen):           {recall(st['refinement_start'])}",
         f"  final:                               {recall(st['final'])}",
-        f"  refinement: {num(st['refinement_worse'])}% worse, {num(st['refinement_better'])}% better than its start"
+        f"  refinement (object poses): {num(st['refinement_worse'])}% worse, {num(st['refinement_better'])}% better than its start"
         f" (by > 5 cm), median change {num(st['refinement_median_change_m'], '+.2f')} m; wrong final poses"
         f" (>= 25 cm) with a right prior: {num(st['wrong_with_right_prior'])}%, with a right reference start:"
         f" {num(st['wrong_with_right_reference'])}%",

@@ -121,10 +121,10 @@ def summarize_stages(rows: list[QueryStages]) -> dict[str, Any]:
         matched.update(q.matches)
     n_matches = sum(matched.values())
     verified = [q.verification_inliers for q in rows if q.verification_inliers is not None]
-    refined = [q for q in rows if np.isfinite(q.final[0]) and np.isfinite(q.start[0])]
-    wrong = [q for q in rows if not q.final[0] < RIGHT_M]
     by_keypoints = [q for q in rows if q.chosen == "anchors"]
-    by_objects = [q for q in rows if q.chosen is not None and q.chosen != "anchors"]
+    by_objects = [q for q in rows if q.chosen is not None and q.chosen != "anchors"]  # refined hypotheses
+    refined = [q for q in by_objects if np.isfinite(q.final[0]) and np.isfinite(q.start[0])]
+    wrong = [q for q in rows if not q.final[0] < RIGHT_M]
 
     def pct(k: int, of: int) -> float | None:
         return 100.0 * k / of if of else None
@@ -140,7 +140,7 @@ def summarize_stages(rows: list[QueryStages]) -> dict[str, Any]:
         "keypoint_pose": _recall([q.final for q in by_keypoints]) | {"share": pct(len(by_keypoints), n)},
         "object_pose": _recall([q.final for q in by_objects]) | {"share": pct(len(by_objects), n)},
         "coarse_prior": _recall([q.prior for q in rows]),
-        "best_reference_start": _recall([q.best_reference for q in rows]),
+        "best_reference_start": _recall([q.best_reference for q in by_objects]),
         "refinement_start": _recall([q.start for q in rows]),
         "final": _recall([q.final for q in rows]),
         "refinement_median_change_m": (

@@ -223,7 +223,7 @@ class OrbReloc:
                         inliers=len(good),
                         timing_s={"retrieve": t1 - t0, "pnp": time.perf_counter() - t1},
                     )
-                    return PoseEstimate(geometry.invert(T_cw), diag)
+                    return PoseEstimate(geometry.invert(T_cw), diag, confidence=len(good))
         diag["inliers"] = best_good
         if not diag["bow_candidates"]:
             return Failure(f"no candidate keyframe with {c.min_bow_matches} BoW matches", diag)

@@ -128,7 +128,7 @@ class SiftPnP:
         diag["inliers"] = n_inliers
         if pose is None or n_inliers < c.min_inliers:
             return Failure(f"{n_inliers} inliers of {len(qi)} matches, fewer than min_inliers={c.min_inliers}", diag)
-        return PoseEstimate(pose.T_wc, diag)
+        return PoseEstimate(pose.T_wc, diag, confidence=n_inliers)
 
     def _match(self, q: np.ndarray, frames: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Ratio-test matches ``(query keypoint indices, map rows)`` against each retrieved frame.

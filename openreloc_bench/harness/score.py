@@ -34,7 +34,8 @@ class Outcome:
 
 def score_split(seq: SceneSequence, outcomes: dict[str, Outcome]) -> pd.DataFrame:
     """One row per ground-truth query of ``seq`` (columns :data:`~openreloc_bench.data.runs.QUERY_COLUMNS`,
-    then ``confidence``: the outcome's, NaN for a failure or where none was given).
+    then ``confidence``: the outcome's, NaN for a failure or where none was given); ``reproj_err_px`` is
+    :func:`reprojection_error`, infinite for a failure.
 
     Queries without an outcome are failures ("missing"); outcomes for names that are not queries of
     this split are a caller error (the pose file names the wrong split or frames).
@@ -62,12 +63,40 @@ def score_split(seq: SceneSequence, outcomes: dict[str, Outcome]) -> pd.DataFram
     ok = np.isfinite(t_err) & np.isfinite(r_err)
     t_err[~ok] = np.inf
     r_err[~ok] = np.inf
+    reproj = np.array([reprojection_error(seq, i, est[i]) if ok[i] else np.inf for i in range(len(names))])
     return pd.DataFrame({
-        "query": names, "success": ok, "t_err_m": t_err, "r_err_deg": r_err, "runtime_s": runtime,
+        "query": names, "success": ok, "t_err_m": t_err, "r_err_deg": r_err, "reproj_err_px": reproj,
+        "runtime_s": runtime,
         "reason": [r or ("" if s else "no estimate") for r, s in zip(reasons, ok)],
         "gt_x": gt[:, 0, 3], "gt_y": gt[:, 1, 3], "gt_z": gt[:, 2, 3],
         "est_x": est[:, 0, 3], "est_y": est[:, 1, 3], "est_z": est[:, 2, 3], "confidence": confidence,
     })  # fmt: skip
+
+
+VIRTUAL_GRID = (8, 6)
+"""Columns and rows of the pixel grid whose depth gives a query's virtual correspondences."""
+FALLBACK_DEPTH_M = 2.0
+"""Depth of a virtual correspondence where the query has no depth reading at all."""
+
+
+def reprojection_error(seq: SceneSequence, i: int, T_est: np.ndarray) -> float:
+    """Map-free's virtual correspondence reprojection error (pixels) of query ``i``: the mean distance
+    between where points of the scene appear at the true pose and where the estimate would draw them.
+    The points are a grid of the query's pixels lifted by its ground-truth depth (map-free, which has
+    none, places them at fixed depths); a pixel without a reading takes the median reading (or 2 m).
+    Infinite when a point falls behind the estimated camera."""
+    frame = seq[i]
+    cols, rows = VIRTUAL_GRID
+    u, v = np.meshgrid((np.arange(cols) + 0.5) * seq.width / cols, (np.arange(rows) + 0.5) * seq.height / rows)
+    uv = np.column_stack([u.ravel(), v.ravel()])
+    depth = np.zeros(len(uv)) if frame.depth is None else frame.depth[uv[:, 1].astype(int), uv[:, 0].astype(int)]
+    valid = frame.depth[frame.depth > 0] if frame.depth is not None else np.zeros(0)
+    depth = np.where(depth > 0, depth, float(np.median(valid)) if valid.size else FALLBACK_DEPTH_M)
+    points = geometry.transform_points(frame.T_wc, geometry.unproject(frame.K, uv, depth))
+    drawn, z = geometry.project(frame.K, T_est, points)
+    if (z <= 0).any():
+        return float("inf")
+    return float(np.linalg.norm(drawn - uv, axis=1).mean())
 
 
 def split_difficulty(scene: Scene, split: str) -> pd.DataFrame:

@@ -21,16 +21,18 @@ import pandas as pd
 
 from openreloc_bench.data import io
 from openreloc_bench.harness.ablations import ABLATION_ROWS, FULL_ROW, ROBUSTNESS_ROWS, ablation_label
-from openreloc_bench.harness.metrics import METRIC_COLUMNS, summarize
+from openreloc_bench.harness.metrics import INTERVAL_COLUMNS, METRIC_COLUMNS, RECALLS, hits, recall_intervals, summarize
 
 SCENE_KEYS = ["method", "track", "scene", "split"]
 SUITE_KEYS = ["method", "track", "split"]
 EXTRA_COLUMNS = ("n_scenes", "n_seeds", "map_mb", "mapping_time_s", "latency_median_s", "latency_p90_s")
 COMPACT_COLUMNS = {
-    "recall_100cm": "R@1m%", "recall_50cm": "R@50cm%", "recall_25cm": "R@25cm%", "recall_25cm_5deg": "R@25cm,5°%",
-    "mte_25cm_m": "MTE@25[m]", "mre_25cm_deg": "MRE@25[°]", "median_te_m": "med TE[m]", "median_re_deg": "med RE[°]",
-    "map_mb": "map MB", "latency_median_ms": "lat[ms]",
+    "recall_50cm": "R@50cm% [95% CI]", "recall_25cm": "R@25cm% [95% CI]", "recall_25cm_5deg": "R@25cm,5°%",
+    "recall_5cm_5deg": "R@5cm,5°%", "recall_vcre": "VCRE<90px%", "median_te_m": "med TE[m]",
+    "median_re_deg": "med RE[°]", "auc_25cm_5deg": "AUC%", "map_mb": "map MB", "latency_median_ms": "lat[ms]",
 }  # fmt: skip
+WITH_INTERVAL = ("recall_50cm", "recall_25cm")
+"""The recalls ``eval``'s summary prints with their intervals (the tables hold every recall's)."""
 
 
 def metric_table(queries: pd.DataFrame, keys: list[str], maps: pd.DataFrame) -> pd.DataFrame:
@@ -38,8 +40,13 @@ def metric_table(queries: pd.DataFrame, keys: list[str], maps: pd.DataFrame) -> 
     rows = []
     for key, g in queries.groupby(keys, sort=True):
         row: dict[str, Any] = dict(zip(keys, key))
-        row.update(summarize(g["t_err_m"].to_numpy(), g["r_err_deg"].to_numpy()))
+        t, r, reproj = g["t_err_m"].to_numpy(), g["r_err_deg"].to_numpy(), _optional(g, "reproj_err_px")
+        row.update(summarize(t, r, reproj, _optional(g, "confidence")))
         row["n_queries"], row["n_failed"] = int(row["n_queries"]), int(row["n_failed"])
+        intervals = recall_intervals(hits(t, r, reproj), g["scene"].to_numpy())
+        row.update({f"{k}_{end}": intervals[j, e] for j, k in enumerate(RECALLS) for e, end in enumerate(("lo", "hi"))})
+        if reproj is None:
+            row["recall_vcre_lo"] = row["recall_vcre_hi"] = math.nan
         scene_maps = maps.merge(g[["map_hash", "scene"]].drop_duplicates(), on=["map_hash", "scene"])
         row["n_scenes"] = int(g["scene"].nunique())
         row["n_seeds"] = max(1, int(g["seed"].nunique())) if "seed" in g else 1
@@ -54,8 +61,17 @@ def metric_table(queries: pd.DataFrame, keys: list[str], maps: pd.DataFrame) -> 
         versions = g["data_version"].dropna().unique() if "data_version" in g else []
         row["data_version"] = ",".join(f"{v:g}" for v in sorted(versions))  # empty: scenes that name none
         rows.append(row)
-    cols = [*keys, *METRIC_COLUMNS, *EXTRA_COLUMNS, "config_hash", "spec_hash", "data_version", "git_commit"]
+    cols = [
+        *keys, *METRIC_COLUMNS, *INTERVAL_COLUMNS, *EXTRA_COLUMNS, "config_hash", "spec_hash", "data_version", "git_commit",
+    ]  # fmt: skip
     return pd.DataFrame(rows, columns=cols)
+
+
+def _optional(g: pd.DataFrame, column: str) -> np.ndarray | None:
+    """A per-query column that older tables lack (None there, or where no row of ``g`` has a value)."""
+    if column not in g or not g[column].notna().any():
+        return None
+    return g[column].to_numpy(dtype=np.float64)
 
 
 def pool_seeds(queries: pd.DataFrame) -> pd.DataFrame:
@@ -134,6 +150,8 @@ def write_tables(
 def compact(suite: pd.DataFrame) -> str:
     """The short table ``eval`` prints at the end."""
     suite = suite.assign(latency_median_ms=1000.0 * suite["latency_median_s"])
+    for k in WITH_INTERVAL:
+        suite[k] = [f"{v:.1f} [{lo:.1f}, {hi:.1f}]" for v, lo, hi in zip(suite[k], suite[f"{k}_lo"], suite[f"{k}_hi"])]
     cols = [c for c in COMPACT_COLUMNS if c in suite]
     view = suite[[*SUITE_KEYS, *cols]].rename(columns=COMPACT_COLUMNS)
     return view.to_string(index=False, float_format=lambda v: f"{v:.2f}", na_rep="-")

@@ -166,7 +166,7 @@ class ObjectMap:
             "up": np.asarray(self.up, dtype=float).tolist(),
             "encoder": self.encoder,
             "config": self.config,
-            "stats": _plain(self.stats),
+            "stats": _plain({**self.stats, "bytes": component_bytes(arrays)}),
             "graph_nodes": sorted(int(n) for n in self.graph.nodes),
             "landmarks": {
                 str(lm.id): {"valid": bool(lm.valid), "category": lm.category, "n_views": int(lm.n_views)} for lm in lms
@@ -251,6 +251,21 @@ class ObjectMap:
 def map_size_bytes(map_dir: Path | str) -> int:
     """Bytes of every file of a saved map (what the harness counts as map size)."""
     return sum(p.stat().st_size for p in Path(map_dir).rglob("*") if p.is_file())
+
+
+COMPONENTS = {
+    "landmarks": ("landmark_ids", "point_counts", "points_q", "point_quantum", "box_min", "box_max", "center"),
+    "descriptors": ("descriptors",),
+    "reference_frames": ("rf_index", "rf_T_wc", "rf_counts", "rf_ids", "rf_boxes", "rf_visibility"),
+    "scene_graph": ("graph_edges", "graph_edge_kind"),
+    "anchors": ("anchor_xyz", "anchor_descriptors", "anchor_landmark"),
+}
+"""The map's parts, by the arrays that hold them."""
+
+
+def component_bytes(arrays: dict[str, np.ndarray]) -> dict[str, int]:
+    """Uncompressed bytes of each of :data:`COMPONENTS` (the map's files add metadata and compression)."""
+    return {part: int(sum(arrays[k].nbytes for k in keys)) for part, keys in COMPONENTS.items()}
 
 
 def _plain(v: Any) -> Any:

@@ -45,6 +45,15 @@ def check_mapping_frames_localize(name: str, map_dir: Path, scene: Scene) -> Non
         assert t_err < 0.02 and r_err < 0.5, (i, t_err, r_err)
 
 
+def check_confidence_is_inliers(name: str, map_dir: Path, scene: Scene) -> None:
+    """A structure-based method's confidence is the inlier count its diagnostics report, at least its
+    acceptance threshold."""
+    method = loaded(name, map_dir)
+    est = method.localize(query_of(scene, "mapping", 0)[0])
+    assert isinstance(est, PoseEstimate)
+    assert est.confidence == est.diagnostics["inliers"] >= method.config.min_inliers
+
+
 def check_other_scene_fails(name: str, map_dir: Path, other: Scene) -> None:
     """Images of another room give a Failure with a reason, never a pose."""
     method = loaded(name, map_dir)

@@ -29,6 +29,13 @@ def test_mapping_frames_localize(name: str, built_map: Callable[[str], Path], sc
 
 
 @pytest.mark.parametrize("name", STRUCTURE_BASED)
+def test_confidence_is_the_inlier_count(
+    name: str, built_map: Callable[[str], Path], scenes: tuple[Scene, Scene]
+) -> None:
+    contract.check_confidence_is_inliers(name, built_map(name), scenes[0])
+
+
+@pytest.mark.parametrize("name", STRUCTURE_BASED)
 def test_other_scene_fails(name: str, built_map: Callable[[str], Path], scenes: tuple[Scene, Scene]) -> None:
     contract.check_other_scene_fails(name, built_map(name), scenes[1])
 

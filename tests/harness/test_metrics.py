@@ -8,7 +8,15 @@ import numpy as np
 import pytest
 
 from openreloc_bench import geometry
-from openreloc_bench.harness.metrics import METRIC_COLUMNS, cumulative_curve, summarize
+from openreloc_bench.harness.metrics import (
+    METRIC_COLUMNS,
+    RECALLS,
+    coverage_auc,
+    cumulative_curve,
+    hits,
+    recall_intervals,
+    summarize,
+)
 
 INF = math.inf
 
@@ -37,6 +45,48 @@ def test_failures_count_in_denominators_and_accuracy_is_nan_without_successes(t:
     assert m["n_failed"] == 2 and m["recall_100cm"] == 0.0
     assert math.isnan(m["mte_50cm_m"]) and math.isnan(m["mre_25cm_deg"])
     assert m["median_te_m"] == INF
+
+
+def test_the_fields_thresholds_rotation_aware_and_reprojection() -> None:
+    t, r = np.array([0.04, 0.04, 0.08, 0.2, INF]), np.array([4.0, 6.0, 9.0, 4.0, INF])
+    m = summarize(t, r, reproj_px=np.array([10.0, 95.0, 50.0, math.nan, INF]))
+    assert m["recall_5cm_5deg"] == 20.0 and m["recall_10cm_10deg"] == 60.0 and m["recall_25cm_5deg"] == 40.0
+    assert m["recall_vcre"] == 40.0 and m["median_reproj_px"] == 95.0  # NaN reprojection: not inside
+    assert math.isnan(summarize(t, r)["recall_vcre"]) and math.isnan(summarize(t, r)["auc_25cm_5deg"])
+
+
+def test_coverage_auc_is_map_frees_area_under_precision_vs_coverage() -> None:
+    failed = np.array([False, False, False, True])
+    # ranked by confidence: right, wrong, right; one failure never covered
+    assert coverage_auc(np.array([3.0, 2.0, 1.0, math.nan]), np.array([1, 0, 1, 0], bool), failed) == pytest.approx(
+        100 * (0.25 * 1 + 0.25 * 0.5 + 0.25 * 2 / 3)
+    )
+    # a confidence that ranks the wrong pose last scores higher
+    assert coverage_auc(np.array([3.0, 1.0, 2.0, math.nan]), np.array([1, 0, 1, 0], bool), failed) == pytest.approx(
+        100 * (0.25 + 0.25 + 0.25 * 2 / 3)
+    )
+    # tied confidences are one step: no order among them is rewarded
+    assert coverage_auc(np.ones(2), np.array([1, 0], bool), np.zeros(2, bool)) == pytest.approx(50.0)
+    assert math.isnan(coverage_auc(np.array([1.0, math.nan]), np.ones(2, bool), np.zeros(2, bool)))
+    m = summarize(np.array([0.1, 0.6]), np.array([1.0, 1.0]), confidence=np.array([5.0, 1.0]))
+    assert m["auc_25cm_5deg"] == pytest.approx(100 * (0.5 * 1 + 0.5 * 0.5))
+
+
+def test_intervals_contain_the_recall_shrink_with_queries_and_widen_across_scenes() -> None:
+    rng = np.random.default_rng(0)
+    t = np.where(rng.random(400) < 0.7, 0.1, 0.7)
+    inside = hits(t, np.ones_like(t))
+    j = RECALLS.index("recall_50cm")
+    lo, hi = recall_intervals(inside)[j]
+    assert lo < 100 * inside[:, j].mean() < hi and 5 < hi - lo < 12  # about +-4.5 points at 400 queries
+    assert np.array_equal(recall_intervals(inside), recall_intervals(inside))  # seeded
+    small_lo, small_hi = recall_intervals(inside[:100])[j]
+    assert small_hi - small_lo > hi - lo
+    scenes = np.repeat(np.arange(4), 100)  # scenes that differ: 40, 60, 80 and 100 % right
+    uneven = hits(np.where(rng.random(400) < np.repeat([0.4, 0.6, 0.8, 1.0], 100), 0.1, 0.7), np.ones(400))
+    pooled, by_scene = recall_intervals(uneven)[j], recall_intervals(uneven, scenes)[j]
+    assert by_scene[1] - by_scene[0] > 2 * (pooled[1] - pooled[0])
+    assert np.isnan(recall_intervals(np.zeros((0, len(RECALLS)), bool))).all()
 
 
 def test_empty_and_mismatched() -> None:

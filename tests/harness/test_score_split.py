@@ -8,9 +8,10 @@ import numpy as np
 import pytest
 from harness_test_methods import DIFFICULTY, difficulty_scene, perturb
 
+from openreloc_bench import geometry
 from openreloc_bench.data.scene import DATA_VERSION, DIFFICULTY_AXES, Scene
 from openreloc_bench.errors import DataError
-from openreloc_bench.harness.score import Outcome, score_split, with_difficulty
+from openreloc_bench.harness.score import Outcome, reprojection_error, score_split, with_difficulty
 
 
 def test_score_split_rows(data_dir: Path) -> None:
@@ -29,6 +30,17 @@ def test_score_split_rows(data_dir: Path) -> None:
     np.testing.assert_allclose(df[["gt_x", "gt_y", "gt_z"]].to_numpy(), seq.poses[:, :3, 3])
     assert np.isnan(df["est_x"][1])
     assert df["confidence"][0] == 7.0 and df["confidence"][1:].isna().all()  # none for a failure
+    assert 0 < df["reproj_err_px"][0] < np.inf and np.isinf(df["reproj_err_px"][1:]).all()
+
+
+def test_reprojection_error_is_zero_at_the_truth_and_grows_with_the_error(data_dir: Path) -> None:
+    seq = Scene(data_dir / "sA").sequence("query")
+    T = seq.poses[0]
+    assert reprojection_error(seq, 0, T) == pytest.approx(0.0, abs=1e-6)
+    near, far = (perturb(T, "q", m, 1.0) for m in (0.05, 0.5))
+    assert 0 < reprojection_error(seq, 0, near) < reprojection_error(seq, 0, far)
+    behind = T @ geometry.make_pose(np.diag([-1.0, 1.0, -1.0]), np.zeros(3))  # turned around: the scene is behind it
+    assert reprojection_error(seq, 0, behind) == np.inf
 
 
 def test_unknown_query_names_are_rejected(data_dir: Path) -> None:

@@ -13,6 +13,7 @@ from openreloc_bench.data.mapfile import MANIFEST
 from openreloc_bench.errors import DataError
 from openreloc_bench.openreloc.anchors import Anchors
 from openreloc_bench.openreloc.map import (
+    COMPONENTS,
     Landmark,
     ObjectMap,
     ReferenceFrame,
@@ -87,13 +88,15 @@ def test_round_trip(tmp_path: Path) -> None:
     for got, want in zip(vars(r.anchors).values(), vars(m.anchors).values()):
         np.testing.assert_array_equal(got, want)
     np.testing.assert_array_equal(r.up, m.up)
-    assert (r.width, r.height, r.encoder, r.config, r.stats) == (
+    assert (r.width, r.height, r.encoder, r.config, r.stats["frames_total"]) == (
         64,
         48,
         {"name": "test"},
         {"voxel": 0.02},
-        {"frames_total": 9},
+        9,
     )
+    a = m.anchors  # the size of each part is recorded: the keypoints' share of the map, for one
+    assert r.stats["bytes"]["anchors"] == len(a.xyz) * (12 + 128 + 4) and set(r.stats["bytes"]) == set(COMPONENTS)
 
 
 def test_save_is_deterministic_and_compact(tmp_path: Path) -> None:

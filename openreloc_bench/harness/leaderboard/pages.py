@@ -15,6 +15,7 @@ from openreloc_bench.harness.leaderboard.rows import (
     TRACK_TITLES,
     format_cell,
     provenance,
+    shown_columns,
     track_groups,
     track_rank,
 )
@@ -64,7 +65,8 @@ def to_markdown(
     tables (paths relative to the board, where there are some), one table per track (the predicted
     track's first), the robustness table (``drops``: :func:`~.rows.robustness_drops`), per-scene tables,
     map sizes and the recall-vs-difficulty plots (``difficulty_plots``, paths relative to the board)."""
-    head = [BOARD_COLUMNS[c] for c in b.columns]
+    shown = shown_columns(b)
+    head = [BOARD_COLUMNS[c] for c in shown]
     lines = [
         f"# {_title(versions)}",
         "",
@@ -81,7 +83,7 @@ def to_markdown(
             "",
             f"## {title}",
             "",
-            *md_table(head, [[format_cell(c, r[c]) for c in b.columns] for _, r in t.iterrows()]),
+            *md_table(head, [[format_cell(c, r[c]) for c in shown] for _, r in t.iterrows()]),
         ]
     if drops is not None and not drops.empty:
         lines += ["", f"## {ROBUSTNESS_TITLE}", "", *md_table(list(drops.columns), drops.values.tolist())]
@@ -140,9 +142,10 @@ def to_html(
     """The sortable page: the board's verdict, links to the data's ``card`` and the ``ablations`` tables,
     its tables, the robustness table (``drops``), ``plots`` side by side and the recall-vs-difficulty
     plots full width."""
-    head = [BOARD_COLUMNS[c] for c in b.columns]
+    shown = shown_columns(b)
+    head = [BOARD_COLUMNS[c] for c in shown]
     tables = "".join(
-        _html_table(title, head, [[format_cell(c, r[c]) for c in b.columns] for _, r in t.iterrows()])
+        _html_table(title, head, [[format_cell(c, r[c]) for c in shown] for _, r in t.iterrows()])
         for title, t in _by_track(b)
     )
     if drops is not None and not drops.empty:

@@ -1,5 +1,6 @@
 """A board's verdict line: per track, who leads on the headline split at 50 and at 25 cm, by how much,
-and at what map size."""
+and at what map size. Where the rows carry 95% intervals (``recall_50cm_lo`` / ``_hi``), a best recall
+whose interval overlaps the next method's is no lead: the two are level."""
 
 from __future__ import annotations
 
@@ -36,12 +37,31 @@ def _leaders(rows: pd.DataFrame, col: str) -> tuple[list[str], float, pd.Series 
     return sorted(rows.loc[shown == top, "method"]), top, (rest.iloc[0] if len(rest) else None)
 
 
-def _at(rows: pd.DataFrame, col: str, cm: int) -> tuple[list[str], str, list[str]]:
-    """The leaders on ``col``, 'at 50 cm (66.7 vs b 66.3)' (the best of the rest after 'vs', where there
-    is one) and the methods that names, leaders first."""
+def _interval(row: pd.Series, col: str) -> tuple[float, float] | None:
+    """``col``'s 95% interval in ``row``, None where the row has none."""
+    lo, hi = row.get(f"{col}_lo", np.nan), row.get(f"{col}_hi", np.nan)
+    return None if pd.isna(lo) or pd.isna(hi) else (float(lo), float(hi))
+
+
+def _value(row: pd.Series, col: str) -> str:
+    """'66.7' or, with its interval, '66.7 [61.2, 72.1]'."""
+    ci = _interval(row, col)
+    return _recall(row[col]) + ("" if ci is None else f" [{_recall(ci[0])}, {_recall(ci[1])}]")
+
+
+def _at(rows: pd.DataFrame, col: str, cm: int) -> tuple[list[str], str, str, list[str]]:
+    """Who comes first on ``col``, how ('leads', 'tie', or 'are level' where the best of the rest's interval
+    overlaps the leader's), 'at 50 cm (66.7 vs b 66.3)' and the methods that names, leaders first."""
     leaders, top, runner = _leaders(rows, col)
-    vs = "" if runner is None else f" vs {runner.method} {_recall(runner[col])}"
-    return leaders, f"at {cm} cm ({_recall(top)}{vs})", [*leaders, *([] if runner is None else [runner.method])]
+    first = rows[rows["method"] == leaders[0]].iloc[0]
+    if runner is None:
+        return leaders, "tie", f"at {cm} cm ({_value(first, col)})", leaders
+    named = [*leaders, runner.method]
+    a, b = _interval(first, col), _interval(runner, col)
+    if a is not None and b is not None and a[0] <= b[1]:
+        return named, "are level", f"at {cm} cm ({_value(first, col)} vs {_value(runner, col)})", named
+    verb = "tie" if len(leaders) > 1 else "leads"
+    return leaders, verb, f"at {cm} cm ({_value(first, col)} vs {runner.method} {_value(runner, col)})", named
 
 
 def _map_size(row: pd.Series) -> str:
@@ -61,13 +81,13 @@ def track_verdict(rows: pd.DataFrame) -> str:
             f"only {r.method} ran ({_recall(r.recall_50cm)} at 50 cm, {_recall(r.recall_25cm)} at 25 cm; "
             f"map size {sizes[r.method]})"
         )
-    lead50, at50, named50 = _at(rows, "recall_50cm", 50)
-    lead25, at25, named25 = _at(rows, "recall_25cm", 25)
-    text = f"{_names(lead50)} {'tie' if len(lead50) > 1 else 'leads'} {at50}"
-    if lead25 == lead50:
+    lead50, verb50, at50, named50 = _at(rows, "recall_50cm", 50)
+    lead25, verb25, at25, named25 = _at(rows, "recall_25cm", 25)
+    text = f"{_names(lead50)} {verb50} {at50}"
+    if (lead25, verb25) == (lead50, verb50):
         text += f" and {at25}"
     else:
-        text += f", {_names(lead25)}{' tie' if len(lead25) > 1 else ''} {at25}"
+        text += f", {_names(lead25)}{'' if verb25 == 'leads' else ' ' + verb25} {at25}"
     named = list(dict.fromkeys([*named50, *named25]))
     return f"{text}; map size: {', '.join(f'{m} {sizes[m]}' for m in named)}"
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import html
 from pathlib import Path
 
 import pandas as pd
@@ -58,3 +59,16 @@ def test_boards_keep_ablation_variants_in_the_csv_and_link_their_table(tmp_path:
     assert set(pd.read_csv(out / "difficulty.csv")["method"]) == {"openreloc"}
     assert out / "ablations_predicted.md" in files
     assert (out / "ablations_predicted.md").read_text() == "Ablations (predicted track; seed 0)\n"
+
+
+def test_boards_print_recalls_with_their_intervals_and_the_fields_thresholds(tmp_path: Path) -> None:
+    out = tmp_path / "board"
+    write_leaderboard([results_dir(tmp_path / "r", "m")], out)
+    md = (out / "leaderboard.md").read_text()
+    for column in ("R@50cm 95% CI", "R@25cm 95% CI", "R@5cm,5° [%]", "R@10cm,10° [%]", "VCRE<90px [%]"):
+        assert column in md and html.escape(column) in (out / "index.html").read_text()
+    assert "recall_50cm_lo" not in md  # the bounds the verdict reads are not a column of their own
+    suite = pd.read_csv(out / "leaderboard.csv").set_index("split")
+    lo, r50, hi = suite.loc["query", ["recall_50cm_lo", "recall_50cm", "recall_50cm_hi"]]
+    assert lo <= r50 <= hi and lo < hi  # 3 of 4 queries within 50 cm: far from certain
+    assert f"[{lo:.1f}, {hi:.1f}]" in md

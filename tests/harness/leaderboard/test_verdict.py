@@ -62,3 +62,14 @@ def test_verdict_of_one_method_of_mask_free_methods_only_and_of_diagnostics() ->
     )
     alone = runs(("openreloc-oracle-association", "oracle-mask", 97.7, 94.3, 0.68))
     assert verdict(alone).startswith("Oracle-mask track: only openreloc-oracle-association ran")
+
+
+def test_verdict_calls_overlapping_intervals_level_not_a_lead() -> None:
+    b = runs(("openreloc", "predicted", 67.0, 55.4, 0.75), ("sift-pnp", "mask-free", 66.3, 66.0, 221.0))
+    b["recall_50cm_lo"], b["recall_50cm_hi"] = [61.5, 60.8], [72.3, 71.7]  # 0.7 points: well inside both
+    b["recall_25cm_lo"], b["recall_25cm_hi"] = [49.8, 60.6], [60.2, 71.4]  # 10.6 points: apart
+    assert verdict(b) == (
+        "Predicted track: openreloc and sift-pnp are level at 50 cm (67.0 [61.5, 72.3] vs 66.3 [60.8, 71.7]), "
+        "sift-pnp at 25 cm (66.0 [60.6, 71.4] vs openreloc 55.4 [49.8, 60.2]); "
+        "map size: openreloc 0.75 MB, sift-pnp 221 MB."
+    )

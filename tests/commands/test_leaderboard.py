@@ -126,7 +126,10 @@ def test_leaderboard_heads_with_the_predicted_track(results: tuple[Path, Path], 
     md = (out / "leaderboard.md").read_text()
     verdict = md.splitlines()[2]  # under the title, made from the rows: nearest-frame stands in both tracks
     assert verdict.startswith("**Verdict (query split, recall [%]):** Predicted track: ")
-    assert "outside not recorded" in verdict and ". Oracle-mask track: test-oracle leads at 50 cm (100.0 vs " in verdict
+    assert (
+        "outside not recorded" in verdict
+        and ". Oracle-mask track: test-oracle leads at 50 cm (100.0 [100.0, 100.0] vs " in verdict
+    )
     head, oracle = md.index("## Predicted track (headline)"), md.index("## Oracle-mask track (upper bound)")
     assert head < md.index("| outside | predicted |") < oracle < md.index("| test-oracle | oracle-mask |")
     # nearest-frame reads no masks: one row per split, standing in both tables (the last run of it)

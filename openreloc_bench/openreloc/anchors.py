@@ -192,11 +192,11 @@ class AnchorPose:
 def refined_or_prior(
     anchored: AnchorPose | None, prior: np.ndarray, refined: np.ndarray, K: np.ndarray, cfg: AnchorConfig
 ) -> tuple[np.ndarray, float]:
-    """The pose an object-stage refinement ends at and its confidence (keypoint support; NaN without
-    keypoint matches): ``refined``, unless :attr:`AnchorConfig.keep_prior` finds that it leaves the
-    keypoint evidence its ``prior`` had."""
+    """The pose an object-stage refinement ends at and its confidence (keypoint support: 0 where the
+    keypoint stage found no pose, NaN with anchors switched off): ``refined``, unless
+    :attr:`AnchorConfig.keep_prior` finds that it leaves the keypoint evidence its ``prior`` had."""
     if anchored is None:
-        return refined, float("nan")
+        return refined, 0.0 if cfg.enabled else float("nan")
     at_prior, at_refined = (anchored.support(T, K, cfg.pose.max_error_px) for T in (prior, refined))
     if cfg.keep_prior and at_prior >= cfg.seed_inliers and at_refined < at_prior:
         return prior, float(at_prior)

@@ -98,7 +98,8 @@ def test_a_refinement_that_leaves_its_keypoint_evidence_keeps_the_prior() -> Non
     assert refined_or_prior(evidence, prior, near, K, cfg) == (near, 30.0)
     weak = keypoint_evidence(prior, K, cfg.seed_inliers - 1)  # too little evidence to overrule refinement
     assert refined_or_prior(weak, prior, drifted, K, cfg)[0] is drifted
-    T, confidence = refined_or_prior(None, prior, drifted, K, cfg)  # no keypoint matches at all
+    assert refined_or_prior(None, prior, drifted, K, cfg) == (drifted, 0.0)  # the keypoints found no pose
+    T, confidence = refined_or_prior(None, prior, drifted, K, AnchorConfig(enabled=False))  # none were sought
     assert T is drifted and np.isnan(confidence)
 
 

@@ -103,6 +103,10 @@ def _scene_dirs(args: argparse.Namespace) -> list[Path]:
         dirs = [args.data / n for n in suite_scene_names(args.suite)]
     else:
         dirs = [Path(s) for s in args.scenes.split(",") if s]
+        seen = [d.resolve() for d in dirs]
+        twice = next((d for k, d in enumerate(dirs) if seen[k] in seen[:k]), None)
+        if twice is not None:
+            raise ConfigError(f"--scenes names {twice.name} twice: each scene would count twice in the pooled numbers")
     missing = [d for d in dirs if not (d / "scene.json").is_file()]
     if missing:
         raise ConfigError(f"no scene at {missing[0]} (generate it first: `openreloc-bench generate SUITE --out DIR`)")

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 from collections import Counter
 from pathlib import Path
 from typing import Any
@@ -81,15 +82,21 @@ def summary(records: list[Answer], gt: dict[str, np.ndarray] | None = None) -> l
 
 
 def _json_safe(v: Any) -> Any:
+    """A method's diagnostics as standard JSON holds them: NaN as null, infinities as "inf" / "-inf",
+    sets as sorted lists, numpy values as Python ones, anything else as its text."""
     if isinstance(v, dict):
         return {str(k): _json_safe(x) for k, x in v.items()}
     if isinstance(v, (list, tuple)):
         return [_json_safe(x) for x in v]
-    if isinstance(v, np.ndarray):
-        return v.tolist()
-    if isinstance(v, np.generic):
-        return v.item()
-    return v
+    if isinstance(v, (set, frozenset)):
+        return sorted((_json_safe(x) for x in v), key=repr)
+    if isinstance(v, (np.ndarray, np.generic)):
+        return _json_safe(v.tolist())
+    if isinstance(v, float) and not math.isfinite(v):
+        return None if math.isnan(v) else ("inf" if v > 0 else "-inf")
+    if v is None or isinstance(v, (bool, int, float, str)):
+        return v
+    return str(v)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -130,6 +137,7 @@ def run(args: argparse.Namespace) -> int:
                     }
                 ),
                 sort_keys=True,
+                allow_nan=False,
             )
             for r in records
         ]

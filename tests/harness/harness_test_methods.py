@@ -58,6 +58,8 @@ class OracleConfig:
     """Written into the map: the one map-time setting (the others act at query time)."""
     seed: int = 0
     """Adds ``seed`` x 10 cm to the translation noise, so runs over seeds differ by a known amount."""
+    odd_diagnostics: bool = False
+    """Diagnostics that JSON cannot hold as they are: NaN, infinity, a set, a numpy array with a NaN."""
     slow_exit_s: float = 0.0
     """``build_map`` leaves a semaphore and makes its process's exit take this long, as libraries that
     keep multiprocessing locks (tqdm, torch) do."""
@@ -103,7 +105,11 @@ class NoisyOracle:
             return Failure("no objects recognised")
         split, fid = query.name.split("/")
         T = io.read_matrix(self._root / split / "pose" / f"{fid}.txt")
-        return PoseEstimate(perturb(T, query.name, c.noise_m + 0.1 * c.seed, c.noise_deg), confidence=ORACLE_CONFIDENCE)
+        odd = (
+            {"nan": np.nan, "inf": np.inf, "set": {2, 1}, "array": np.array([np.nan, 1.0])} if c.odd_diagnostics else {}
+        )
+        T_est = perturb(T, query.name, c.noise_m + 0.1 * c.seed, c.noise_deg)
+        return PoseEstimate(T_est, odd, confidence=ORACLE_CONFIDENCE)
 
 
 def perturb(T: np.ndarray, name: str, noise_m: float, noise_deg: float) -> np.ndarray:

@@ -311,6 +311,11 @@ MISTAKES: dict[str, tuple[str, Callable[[World], list[str]], str]] = {
         lambda w: ["import", "tum", str(write_tum_sequence(w.inputs / "fr1", n=3)), "--max-depth", "0", "--out", str(w.tmp / "imp")],
         "--max-depth must be in (0, 65.534] metres, got 0.0",
     ),
+    "diagnose --scenes: one scene twice": (
+        "diagnose",
+        lambda w: ["diagnose", "--scenes", f"{w.scene},{w.scene}/", "--work", str(w.tmp / "work")],
+        "--scenes names sA twice: each scene would count twice in the pooled numbers",
+    ),
     "train-encoder: --threads 0": (
         "train-encoder",
         lambda w: ["train-encoder", "--out", str(w.tmp / "enc"), "--threads", "0"],
@@ -512,6 +517,27 @@ def test_a_truncated_image_is_a_counted_failure_not_a_traceback(world: World, ca
     img.write_bytes(img.read_bytes()[:40])
     code, out, err = run(eval_argv(world), capsys)
     assert code == 1 and "unreadable image" in out and "Traceback" not in err
+
+
+def test_diagnostics_that_json_cannot_hold_are_written_as_standard_json(world: World, capsys) -> None:
+    oracle_map, diag = world.tmp / "oracle-map", world.tmp / "diag.jsonl"
+    assert (
+        run(["map", "--method", "test-oracle", *PLUGIN, "--scene", str(world.scene), "--out", str(oracle_map)], capsys)[
+            0
+        ]
+        == 0
+    )
+    argv = ["localize", "--method", "test-oracle", *PLUGIN, "--set", "odd_diagnostics=true", "--map", str(oracle_map)]
+    argv += ["--scene", str(world.scene), "--out", str(world.tmp / "poses.txt"), "--diagnostics", str(diag)]
+    assert run(argv, capsys)[0] == 0
+
+    def refuse(constant: str) -> None:
+        raise AssertionError(f"{constant} is not JSON")
+
+    lines = [json.loads(line, parse_constant=refuse) for line in diag.read_text().splitlines()]
+    assert lines and all(
+        ln["diagnostics"] == {"nan": None, "inf": "inf", "set": [1, 2], "array": [None, 1.0]} for ln in lines
+    )
 
 
 @pytest.mark.parametrize("timeout", ["300", "0"])  # the query in a worker process, or in the eval's own

@@ -54,6 +54,7 @@ def test_eval_writes_poses_tum_tables_and_provenance(data_dir: Path, tmp_path: P
             "expect_track": "",
             "map_tag": "",
             "seed": 0,
+            "odd_diagnostics": False,
             "slow_exit_s": 0.0,
         },
     }

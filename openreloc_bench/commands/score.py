@@ -65,6 +65,8 @@ def run(args: argparse.Namespace) -> int:
     splits = list(dict.fromkeys(s.strip() for s in args.splits.split(",") if s.strip()))
     if not splits:
         raise ConfigError("--splits names no split")
+    if "mapping" in splits:
+        raise ConfigError("--splits: 'mapping' built the maps; scoring poses of its own frames measures nothing")
     name = args.submission.resolve().name
     out = args.out or Path(f"{name}-scores")
     paths.check_output(out, [args.submission, *(args.data / s for s in scenes)], "--out")

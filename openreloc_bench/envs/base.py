@@ -144,6 +144,8 @@ class IndoorEnv(gym.Env, EzPickle):
     config_class: type[EnvConfig] = EnvConfig
     final_action = "done"
     """Name of action 5."""
+    reset_options: tuple[str, ...] = ()
+    """The keys ``reset(options=...)`` reads; any other is a ValueError (a typo would pass unnoticed)."""
 
     def __init__(self, render_mode: str | None = None, **options: Any):
         EzPickle.__init__(self, render_mode, **options)
@@ -176,6 +178,7 @@ class IndoorEnv(gym.Env, EzPickle):
         self._world: World | None = None
         self._window: _Window | None = None
         self._pose: AgentPose | None = None
+        self._ended = False
         self._camera = np.eye(4)
         self._estimate: Estimate | None = None
         self._answer: Estimate | None = None
@@ -237,8 +240,15 @@ class IndoorEnv(gym.Env, EzPickle):
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+        unknown = sorted(set(options or {}) - set(self.reset_options))
+        if unknown:
+            known = ", ".join(self.reset_options) or "none"
+            raise ValueError(
+                f"unknown reset option(s) {', '.join(map(repr, unknown))} (this environment reads: {known})"
+            )
         super().reset(seed=seed)
         self._steps = 0
+        self._ended = False
         self._path_m = 0.0
         self._calls = 0
         self._estimate, self._answer, self._answer_view = None, None, None
@@ -255,6 +265,8 @@ class IndoorEnv(gym.Env, EzPickle):
     def step(self, action: Any) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
         if self._pose is None:
             raise gym.error.ResetNeeded("call reset() before step()")
+        if self._ended:
+            raise gym.error.ResetNeeded("the episode has ended (terminated or truncated): call reset() before step()")
         if not self.action_space.contains(action):
             names = ", ".join(f"{i} {n}" for i, n in enumerate(self.action_names))
             raise gym.error.InvalidAction(f"invalid action {action!r} (Discrete(6): {names})")
@@ -288,6 +300,7 @@ class IndoorEnv(gym.Env, EzPickle):
         info["collided"] = action == FORWARD and moved == 0.0
         info["relocalized"] = self._fresh
         if terminated or truncated:
+            self._ended = True
             info.update(self._episode_metrics())
         obs = self._observe()
         if self.render_mode == "human":

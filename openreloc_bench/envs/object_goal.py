@@ -75,6 +75,7 @@ class ObjectGoalEnv(IndoorEnv):
 
     config_class = ObjectGoalConfig
     final_action = "stop"
+    reset_options = ("goal_id",)
     config: ObjectGoalConfig
 
     # ---------------------------------------------------------------------------- setup

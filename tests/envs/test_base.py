@@ -165,6 +165,20 @@ def test_invalid_actions_and_order_are_one_line_errors(make_env, env_id: str) ->
     env.step(np.int64(1))  # numpy integers are valid actions
 
 
+@pytest.mark.parametrize("env_id", IDS)
+def test_an_ended_episode_needs_a_reset_and_reset_options_are_checked(make_env, env_id: str) -> None:
+    env = make_env(env_id, max_steps=1, relocalize_every=0).unwrapped
+    env.reset(seed=0)
+    *_, terminated, truncated, _ = env.step(1)  # a turn: the one step allowed
+    assert terminated or truncated
+    with pytest.raises(gym.error.ResetNeeded, match="the episode has ended"):
+        env.step(1)  # it used to go on: another reward, a step count past max_steps
+    env.reset(seed=0)
+    env.step(1)  # a new episode steps again
+    with pytest.raises(ValueError, match=r"unknown reset option\(s\) 'goal'"):
+        env.reset(seed=0, options={"goal": 3})  # a typo of goal_id used to pick a random goal
+
+
 def test_bad_scene_method_and_options_are_one_line_errors(env_options, tmp_path: Path) -> None:
     base = env_options["openreloc/ActiveReloc-v0"]
     not_generated = write_tiny_scene(tmp_path / "real-data")  # scene.json without a generator spec

@@ -117,6 +117,11 @@ MISTAKES: dict[str, tuple[str, Callable[[World], list[str]], str]] = {
         lambda w: ["localize", "--method", "nearest-frame", "--map", str(w.map_dir), "--scene", str(w.scene), "--out", str(w.tmp / "p.txt"), "--set", "thumb_size=8"],
         "map built with",
     ),
+    "score --splits: the mapping split": (
+        "score",
+        lambda w: ["score", str(submission(w, "query/000000 1 0 0 0 0 0 0\n")), "--data", str(w.data), "--splits", "mapping", "--out", str(w.tmp / "s")],
+        "--splits: 'mapping' built the maps; scoring poses of its own frames measures nothing",
+    ),
     "score: a per-scene file with a mistyped split": (
         "score",
         lambda w: ["score", str(submission(w, "Query/000000 1 0 0 0 0 0 0\n")), "--data", str(w.data), "--out", str(w.tmp / "s")],

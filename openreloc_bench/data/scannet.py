@@ -101,8 +101,7 @@ class ResizingSequence(SceneSequence):
             inst = io.read_instance(r.instance_path)
             if inst.shape != (self.height, self.width):
                 inst = cv2.resize(inst, (self.width, self.height), interpolation=cv2.INTER_NEAREST)
-        depth = io.read_depth(r.depth_path, self.depth_scale, expect_hw=(self.height, self.width))  # type: ignore[arg-type]
-        return Frame(f"{self.split}/{r.frame_id}", r.T_wc, self.K, color, depth, inst)
+        return Frame(f"{self.split}/{r.frame_id}", r.T_wc, self.K, color, self.depth(i), inst)
 
 
 def stride_split(seq: SceneSequence, stride: int = 20, offset: int = 10) -> tuple[SceneSequence, SceneSequence]:

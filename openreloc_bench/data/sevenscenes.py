@@ -29,7 +29,6 @@ from openreloc_bench import geometry
 from openreloc_bench.data import io
 from openreloc_bench.data.types import (
     INVALID_POSE,
-    Frame,
     FrameRecord,
     SceneSequence,
     check_intrinsics,
@@ -122,10 +121,8 @@ def at_size(K: np.ndarray, hw: tuple[int, int]) -> np.ndarray:
 class _ColourCameraSequence(SceneSequence):
     """7-Scenes frames whose depth is re-projected into the colour camera on read."""
 
-    def __getitem__(self, i: int) -> Frame:
-        r = self.records[i]
-        hw = (self.height, self.width)
-        color = io.read_rgb(r.color_path, expect_hw=hw)
-        raw = io.read_depth(r.depth_path, self.depth_scale)  # type: ignore[arg-type]
-        depth = geometry.reproject_depth(raw, at_size(DEPTH_K, raw.shape), self.K, T_COLOR_DEPTH, hw)
-        return Frame(f"{self.split}/{r.frame_id}", r.T_wc, self.K, color, depth)
+    def depth(self, i: int) -> np.ndarray:
+        raw = io.read_depth(self.records[i].depth_path, self.depth_scale)  # type: ignore[arg-type]
+        return geometry.reproject_depth(
+            raw, at_size(DEPTH_K, raw.shape), self.K, T_COLOR_DEPTH, (self.height, self.width)
+        )

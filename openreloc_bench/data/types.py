@@ -82,10 +82,17 @@ class SceneSequence:
             T_wc=r.T_wc,
             K=self.K,
             color=io.read_rgb(r.color_path, expect_hw=hw),
-            depth=io.read_depth(r.depth_path, self.depth_scale, expect_hw=hw) if r.depth_path else None,
+            depth=self.depth(i),
             instance=io.read_instance(r.instance_path, expect_hw=hw)
             if (r.instance_path and self.load_instances)
             else None,
+        )
+
+    def depth(self, i: int) -> np.ndarray | None:
+        """Frame ``i``'s metric depth alone (no colour decoded), as ``self[i].depth``; None without one."""
+        r = self.records[i]
+        return (
+            io.read_depth(r.depth_path, self.depth_scale, expect_hw=(self.height, self.width)) if r.depth_path else None
         )
 
     @property

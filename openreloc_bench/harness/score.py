@@ -85,15 +85,15 @@ def reprojection_error(seq: SceneSequence, i: int, T_est: np.ndarray) -> float:
     The points are a grid of the query's pixels lifted by its ground-truth depth (map-free, which has
     none, places them at fixed depths); a pixel without a reading takes the median reading (or 2 m).
     Infinite when a point falls behind the estimated camera."""
-    frame = seq[i]
+    image = seq.depth(i)  # only the depth: scoring decodes no colour
     cols, rows = VIRTUAL_GRID
     u, v = np.meshgrid((np.arange(cols) + 0.5) * seq.width / cols, (np.arange(rows) + 0.5) * seq.height / rows)
     uv = np.column_stack([u.ravel(), v.ravel()])
-    depth = np.zeros(len(uv)) if frame.depth is None else frame.depth[uv[:, 1].astype(int), uv[:, 0].astype(int)]
-    valid = frame.depth[frame.depth > 0] if frame.depth is not None else np.zeros(0)
+    depth = np.zeros(len(uv)) if image is None else image[uv[:, 1].astype(int), uv[:, 0].astype(int)]
+    valid = image[image > 0] if image is not None else np.zeros(0)
     depth = np.where(depth > 0, depth, float(np.median(valid)) if valid.size else FALLBACK_DEPTH_M)
-    points = geometry.transform_points(frame.T_wc, geometry.unproject(frame.K, uv, depth))
-    drawn, z = geometry.project(frame.K, T_est, points)
+    points = geometry.transform_points(seq.records[i].T_wc, geometry.unproject(seq.K, uv, depth))
+    drawn, z = geometry.project(seq.K, T_est, points)
     if (z <= 0).any():
         return float("inf")
     return float(np.linalg.norm(drawn - uv, axis=1).mean())

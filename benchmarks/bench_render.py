@@ -63,7 +63,7 @@ def main() -> None:
     print(_render_fps(renderer, poses, K, spec.width, spec.height))
     with tempfile.TemporaryDirectory() as tmp:
         t = time.perf_counter()
-        render_split(renderer, SceneWriter(tmp), "mapping", poses, K, spec, resume=False, bar=None)
+        render_split(renderer, SceneWriter(tmp), "mapping", poses, K, spec, 1.0, resume=False, bar=None)
         dt = time.perf_counter() - t
     fps = len(poses) / dt
     print(f"render + write PNGs: {fps:.1f} frames/s -> 1000 frames in {1000 / fps:.0f} s (+ {t_layout:.0f} s layout)")

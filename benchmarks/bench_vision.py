@@ -78,7 +78,13 @@ def main() -> None:
         from generators.spec import TRAINING_SEED_MIN, SceneSpec
 
         spec = SceneSpec(
-            name="bench", seed=TRAINING_SEED_MIN + 999_999, n_query=args.frames, max_mapping_frames=8, n_displaced=0
+            name="bench",
+            seed=TRAINING_SEED_MIN + 999_999,
+            n_query=args.frames,
+            max_mapping_frames=8,
+            displaced_share=0.0,
+            removed_share=0.0,
+            added_share=0.0,
         )
         scene_dir = generate_scene(spec, tmp, progress=False)
     scene = Scene(scene_dir)

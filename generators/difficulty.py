@@ -41,35 +41,49 @@ def viewpoint_gap(poses: np.ndarray, mapping: np.ndarray) -> tuple[np.ndarray, n
     return d.min(axis=1), np.where(near, angle, np.inf).min(axis=1)
 
 
+def changes_in_view(
+    after: list[np.ndarray], before: list[np.ndarray], shown: set[int], removed: set[int], objects: list[ObjectInfo]
+) -> list[int]:
+    """Per ``query_displaced`` frame, the changes its view holds: moved or added objects it shows
+    (``after``: its instance images) and removed ones the unchanged view showed (``before``: the query
+    split's instance images of the same poses)."""
+    structural = {o.id for o in objects if o.structural}
+    return [
+        len(visible_ids(a, structural) & shown) + len(visible_ids(b, structural) & removed)
+        for a, b in zip(after, before, strict=True)
+    ]
+
+
 def frame_difficulty(
-    instance: np.ndarray, structural: set[int], lookalikes: set[int], displaced: set[int]
+    instance: np.ndarray, structural: set[int], lookalikes: set[int], changes: int
 ) -> dict[str, float]:
-    """Object counts and image area of one frame's instance image."""
+    """Object counts and image area of one frame's instance image (``changes``: see :func:`changes_in_view`)."""
     visible = visible_ids(instance, structural)
     ids, counts = np.unique(instance[instance > 0], return_counts=True)
     objects = np.array([int(i) not in structural for i in ids], dtype=bool)
     return {
         "visible_objects": len(visible),
         "object_area": round(float(counts[objects].sum() / instance.size), 4),
-        "displaced_in_view": len(visible & displaced),
+        "displaced_in_view": changes,
         "lookalikes_in_view": len(visible & lookalikes),
     }
 
 
 def measure_difficulty(
     mapping: np.ndarray,
-    splits: Mapping[str, tuple[np.ndarray, float, list[np.ndarray], set[int]]],
+    splits: Mapping[str, tuple[np.ndarray, float, list[np.ndarray], list[int] | None]],
     objects: list[ObjectInfo],
 ) -> pd.DataFrame:
     """The difficulty table of a scene.
 
-    ``splits``: per query split, its poses (N,4,4), its light level, its instance images and the ids of
-    the objects it shows displaced. Rows follow ``splits``' order and each split's frame order.
+    ``splits``: per query split, its poses (N,4,4), its light level, its instance images and the changes
+    each frame sees (:func:`changes_in_view`; None for a split without changes). Rows follow ``splits``'
+    order and each split's frame order.
     """
     structural = {o.id for o in objects if o.structural}
     lookalikes = lookalike_ids(objects)
     rows = []
-    for split, (poses, level, instances, displaced) in splits.items():
+    for split, (poses, level, instances, changes) in splits.items():
         gap_m, gap_deg = viewpoint_gap(np.asarray(poses).reshape(-1, 4, 4), mapping)
         for i, inst in enumerate(instances):
             rows.append(
@@ -79,7 +93,7 @@ def measure_difficulty(
                     "gap_m": round(float(gap_m[i]), 4),
                     "gap_deg": round(float(gap_deg[i]), 3),
                     "light_level": float(level),
-                    **frame_difficulty(inst, structural, lookalikes, displaced),
+                    **frame_difficulty(inst, structural, lookalikes, changes[i] if changes else 0),
                 }
             )
     return pd.DataFrame(rows, columns=list(DIFFICULTY_COLUMNS))

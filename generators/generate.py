@@ -20,15 +20,16 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from generators.difficulty import measure_difficulty
+from generators.difficulty import changes_in_view, measure_difficulty
 from generators.layout import Layout, build_layout
 from generators.render import Renderer, create_renderer
+from generators.sensor import blend_subframes, exposure_poses, sensor_colour, sensor_depth
 from generators.spec import GENERATOR_VERSION, SceneSpec, SuiteSpec, spec_hash, spec_record
-from generators.trajectories import mapping_path, sample_near_queries, sample_queries
-from generators.variants import LIGHT_SPLITS, Lighting, light_variants, sample_displacements
+from generators.trajectories import mapping_path, sample_near_queries, sample_queries, seen_counts
+from generators.variants import LIGHT_SPLITS, Lighting, hidden, light_variants, sample_displacements
 from openreloc_bench import config, geometry
 from openreloc_bench.data import io, paths
-from openreloc_bench.data.scene import DATA_VERSION, SceneWriter, foreign_files, frame_id
+from openreloc_bench.data.scene import DATA_VERSION, SPLITS, SceneWriter, foreign_files, frame_id
 from openreloc_bench.errors import ConfigError, DataError
 from openreloc_bench.processes import pool_worker, workers_stopped_on_interrupt
 
@@ -74,6 +75,33 @@ def scene_info(spec: SceneSpec, layout: Layout, K: np.ndarray, counts: dict[str,
     }
 
 
+def capture(
+    renderer: Renderer,
+    T: np.ndarray,
+    K: np.ndarray,
+    spec: SceneSpec,
+    level: float,
+    rng: np.random.Generator,
+    T_neighbour: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """One frame as the spec's camera records it: the render, blurred over the motion to
+    ``T_neighbour`` (mapping frames: a hand-held sweep), with the sensor's colour and depth noise."""
+    rgb, depth, inst = renderer.render(T, K, spec.width, spec.height)
+    sensor = spec.sensor
+    if sensor.model == "ideal":
+        return rgb, depth, inst
+    if T_neighbour is not None and sensor.blur_subframes > 1:
+        poses = exposure_poses(T, T_neighbour, sensor)
+        middle = len(poses) // 2 if len(poses) % 2 else -1
+        rgb = blend_subframes(
+            [
+                rgb if k == middle else renderer.render_color(P, K, spec.width, spec.height)[0]
+                for k, P in enumerate(poses)
+            ]
+        )
+    return sensor_colour(rgb, sensor, rng, level), sensor_depth(depth, rgb, K, sensor, rng, level), inst
+
+
 def render_split(
     renderer: Renderer,
     writer: SceneWriter,
@@ -81,24 +109,29 @@ def render_split(
     poses: np.ndarray,
     K: np.ndarray,
     spec: SceneSpec,
+    level: float,
     resume: bool,
     bar: tqdm | None,
 ) -> int:
     """Render and write one split; returns the number of frames reused from a previous run.
 
-    PNG encoding and writing of frame i overlap the rendering of frame i+1 (one writer thread; cv2
-    releases the GIL). Each frame still ends with its pose file, so an interrupted run loses at most
-    the frame in flight, which resume redoes.
+    Each frame's sensor noise has its own seed (scene seed, split, frame), so a resumed run redoes a frame
+    exactly. PNG encoding and writing of frame i overlap the rendering of frame i+1 (one writer thread; cv2
+    releases the GIL). Each frame still ends with its pose file, so an interrupted run loses at most the
+    frame in flight, which resume redoes.
     """
     writer.write_intrinsics(split, K)
     reused = 0
     pending: Future | None = None
+    blurred = split == "mapping" and len(poses) > 1
     with ThreadPoolExecutor(max_workers=1) as pool:
         for i, T in enumerate(poses):
             if resume and writer.has_frame(split, i):
                 reused += 1
             else:
-                rgb, depth, inst = renderer.render(T, K, spec.width, spec.height)
+                rng = np.random.default_rng([spec.seed, SENSOR_STREAM, SPLITS.index(split), i])
+                neighbour = _sweep_neighbour(poses, i) if blurred else None
+                rgb, depth, inst = capture(renderer, T, K, spec, level, rng, neighbour)
                 if pending is not None:
                     pending.result()
                 pending = pool.submit(writer.write_frame, split, i, rgb, depth, inst, T)
@@ -107,6 +140,19 @@ def render_split(
         if pending is not None:
             pending.result()
     return reused
+
+
+SENSOR_STREAM = 23
+"""Seed stream of the sensor noise (the scene's other random draws use other streams)."""
+MAX_BLUR_STEP_M = 1.0
+"""Consecutive mapping frames farther apart are a cut in the sweep (between floors), not motion to blur."""
+
+
+def _sweep_neighbour(poses: np.ndarray, i: int) -> np.ndarray | None:
+    """The mapping frame the camera moves towards from frame ``i`` (the previous one for the last frame),
+    or None across a cut."""
+    j = i + 1 if i + 1 < len(poses) else i - 1
+    return poses[j] if np.linalg.norm(poses[j][:3, 3] - poses[i][:3, 3]) <= MAX_BLUR_STEP_M else None
 
 
 def generate_scene(spec: SceneSpec, out_dir: Path | str, resume: bool = False, progress: bool = True) -> Path:
@@ -160,7 +206,8 @@ def write_scene(spec: SceneSpec, root: Path, resume: bool, progress: bool) -> Pa
             near = sample_near_queries(layout, spec, path, frames, renderer)
         except RuntimeError as e:  # the spec asks for more than its rooms allow: the user's to change
             raise ConfigError(f"scene '{spec.name}': {e}") from None
-        displacements = sample_displacements(layout, spec, queries[:, :3, 3])
+        seen = seen_counts(layout, spec, renderer, queries)
+        displacements = sample_displacements(layout, spec, queries[:, :3, 3], seen)
         lights = light_variants(spec, len(layout.lights))
         splits: dict[str, tuple[np.ndarray, Lighting]] = {
             "mapping": (mapping, Lighting()),
@@ -181,24 +228,30 @@ def write_scene(spec: SceneSpec, root: Path, resume: bool, progress: bool) -> Pa
         writer.write_displacements([asdict(d) for d in displacements])
         reused = 0
         with tqdm(total=sum(counts.values()), desc=spec.name, unit="frame", disable=not progress, leave=False) as bar:
+            for d in displacements:
+                if not d.shown_in_mapping:
+                    renderer.set_instance_pose(d.id, hidden(d.transform_before))
             for split, (poses, lighting) in splits.items():
-                renderer.set_lighting(lighting.level, lighting.tint, lighting.lights_off)
+                renderer.set_lighting(lighting.level, lighting.tint, lighting.lights_off, lighting.headlight)
                 if split == "query_displaced":
                     for d in displacements:
-                        renderer.set_instance_pose(d.id, np.asarray(d.transform_after))
-                reused += render_split(renderer, writer, split, poses, K, spec, resume, bar)
+                        T = np.asarray(d.transform_after)
+                        renderer.set_instance_pose(d.id, T if d.shown_displaced else hidden(T))
+                reused += render_split(renderer, writer, split, poses, K, spec, lighting.level, resume, bar)
         if reused:
             log.info("%s: reused %d finished frames", spec.name, reused)
     finally:
         renderer.close()
-    moved = {d.id for d in displacements}
     instances = {s: read_instances(root / s, len(splits[s][0])) for s in ("query", "query_near", "query_displaced")}
+    shown = {d.id for d in displacements if d.shown_displaced}
+    removed = {d.id for d in displacements if not d.shown_displaced}
+    changes = changes_in_view(instances["query_displaced"], instances["query"], shown, removed, layout.objects())
     measured = {  # the lighting variants see what query sees
         split: (
             poses,
             lighting.level,
             instances["query" if split in LIGHT_SPLITS else split],
-            moved if split == "query_displaced" else set(),
+            changes if split == "query_displaced" else None,
         )
         for split, (poses, lighting) in splits.items()
         if split != "mapping"

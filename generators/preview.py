@@ -87,7 +87,7 @@ def plan_extent(scene: Scene) -> tuple[np.ndarray, np.ndarray] | None:
 
 def draw_floor(ax: plt.Axes, scene: Scene, floor: int, room_names: bool = True, displaced: bool = True) -> list[Artist]:
     """Draw one floor's plan on ``ax``: rooms (coloured by kind), walls, doors/windows/stairs, the other
-    objects' boxes and, with ``displaced``, which objects ``query_displaced`` moved and where to. Returns
+    objects' boxes and, with ``displaced``, which objects ``query_displaced`` changed (moved, removed or added) and where to. Returns
     a legend entry for each kind of thing drawn (the plan's patches carry no labels of their own)."""
     moved = {d["id"]: d for d in scene.displacements()} if displaced else {}
     kinds: list[str] = []
@@ -137,8 +137,8 @@ def draw_floor(ax: plt.Axes, scene: Scene, floor: int, room_names: bool = True, 
     if "objects" in drawn:
         handles.append(Patch(fc="#bbbbbb", ec="#555555", lw=0.6, alpha=0.6, label=f"objects ({drawn['objects']})"))
     if n_moved:
-        handles.append(Patch(fc="#bbbbbb", ec="red", lw=0.6, alpha=0.6, label=f"moved objects, before ({n_moved})"))
-        handles.append(Patch(fill=False, ec="red", ls="--", lw=0.8, label="moved objects, after (query_displaced)"))
+        handles.append(Patch(fc="#bbbbbb", ec="red", lw=0.6, alpha=0.6, label=f"changed objects, before ({n_moved})"))
+        handles.append(Patch(fill=False, ec="red", ls="--", lw=0.8, label="changed objects, after (query_displaced)"))
     return handles
 
 

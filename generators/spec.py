@@ -22,16 +22,19 @@ from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Literal
 
+from generators.sensor import SensorSpec
 from openreloc_bench import __version__, config
 from openreloc_bench.errors import ConfigError
 
-GENERATOR_VERSION = f"{__version__}+gen3"
+GENERATOR_VERSION = f"{__version__}+gen4"
 """Recorded in scene.json and part of :func:`spec_hash`; bump the suffix whenever output for the same spec
 changes, so cached maps and results of scenes from an older generator are not reused.
 gen2: rooms stay connected (pendant lights and one-cell gaps no longer cut corridors) and queries are
 drawn only from the walkable region the mapping sequence covers.
 gen3: benchmark data v2 (:data:`~openreloc_bench.data.scene.DATA_VERSION`): surfaces without exact
-periodicity, the ``query_near`` split, ``difficulty.csv``."""
+periodicity, the ``query_near`` split, ``difficulty.csv``.
+gen4: benchmark data v3: a sensor model, changes among the objects the queries see (moved, removed,
+added), queries without a minimum of visible objects, dark splits without the camera's light."""
 
 TRAINING_SEED_MIN = 1_000_000
 """Seeds >= this are reserved for TRAINING scenes (below :data:`VALIDATION_SEED_MIN`; the encoder's,
@@ -110,10 +113,15 @@ class SceneSpec:
     """Every query camera centre is at least this far (m) from every mapping camera centre..."""
     query_min_angle: float = 20.0
     """...and differs by at least this rotation (deg) from every mapping frame within 1 m."""
-    query_min_objects: int = 3
-    """Non-structural objects that must be visible (>= 0.5% of pixels each) in every query."""
-    n_displaced: int = 5
-    """Objects moved or rotated in the query_displaced variant."""
+    query_min_objects: int = 0
+    """Non-structural objects that must be visible (>= 0.5% of pixels each) in every query (0: views of
+    bare walls and floors are part of the test, as in a real recording)."""
+    displaced_share: float = 0.25
+    """Share of each room's objects moved or rotated in the query_displaced variant..."""
+    removed_share: float = 0.05
+    """...removed from it..."""
+    added_share: float = 0.05
+    """...and added to it (absent from every other split); each drawn among the objects the queries see."""
     light_levels: list[float] = field(default_factory=lambda: [0.7, 0.5, 0.35, 0.2])
     """Brightness of query_light1..4 relative to the mapping lighting (progressive decay, each in (0, 1])."""
     backend: Literal["mujoco", "pyrender"] = "mujoco"
@@ -121,6 +129,9 @@ class SceneSpec:
     Both draw the same geometry and textures, asset packs' included."""
     assets: AssetsSpec = field(default_factory=AssetsSpec)
     """Object sources: asset packs and / or the procedural library."""
+    sensor: SensorSpec = field(default_factory=SensorSpec)
+    """The camera that records the frames: a structured-light RGB-D camera, or ``{model: ideal}`` for the
+    noiseless render (ablations)."""
 
     def __post_init__(self) -> None:
         validate_scene(self)
@@ -153,7 +164,6 @@ def validate_scene(spec: SceneSpec) -> None:
             raise ConfigError(f"scene '{n}': '{key}' must be positive, got {v}")
     nonneg = {
         "objects_per_room": spec.objects_per_room,
-        "n_displaced": spec.n_displaced,
         "seed": spec.seed,
         "max_mapping_frames": spec.max_mapping_frames,
         "query_min_distance": spec.query_min_distance,
@@ -191,8 +201,16 @@ def validate_scene(spec: SceneSpec) -> None:
             f"scene '{n}': 'objects_per_room' = {spec.objects_per_room} does not fit a {spec.room_side_min} m room "
             f"(at most {capacity}); raise room_side_min or lower objects_per_room"
         )
-    if spec.n_displaced > spec.objects_per_room * spec.rooms * spec.floors:
-        raise ConfigError(f"scene '{n}': 'n_displaced' exceeds the number of objects")
+    shares = {
+        "displaced_share": spec.displaced_share,
+        "removed_share": spec.removed_share,
+        "added_share": spec.added_share,
+    }
+    for key, v in shares.items():
+        if not 0 <= v <= 1:
+            raise ConfigError(f"scene '{n}': '{key}' must be in [0, 1], got {v}")
+    if sum(shares.values()) > 1:
+        raise ConfigError(f"scene '{n}': 'displaced_share' + 'removed_share' + 'added_share' must be at most 1")
     if spec.query_min_objects > spec.objects_per_room * spec.rooms * spec.floors:
         raise ConfigError(f"scene '{n}': 'query_min_objects' exceeds the number of objects")
     if spec.n_query > MAX_QUERIES:

@@ -15,6 +15,7 @@ ids at low resolution). ``query_near`` poses lie on the mapping path between con
 
 from __future__ import annotations
 
+from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -321,17 +322,19 @@ def visible_ids(instance: np.ndarray, structural_ids: set[int]) -> set[int]:
     }
 
 
-def visible_objects(instance: np.ndarray, structural_ids: set[int]) -> int:
-    return len(visible_ids(instance, structural_ids))
-
-
-def visibility_check(layout: Layout, spec: SceneSpec, renderer: Renderer) -> Callable[[np.ndarray], int]:
-    """Counts the non-structural objects visible from a camera pose, on a :data:`CHECK_WIDTH` instance render."""
+def visibility_check(layout: Layout, spec: SceneSpec, renderer: Renderer) -> Callable[[np.ndarray], set[int]]:
+    """The non-structural objects visible from a camera pose, on a :data:`CHECK_WIDTH` instance render."""
     structural = {i.id for i in layout.instances if i.structural}
     cw = min(CHECK_WIDTH, spec.width)
     ch = max(8, int(round(cw * spec.height / spec.width)))
     K_check = geometry.intrinsics_from_fov(cw, ch, spec.fov_y)
-    return lambda T: visible_objects(renderer.render_instances(T, K_check, cw, ch), structural)
+    return lambda T: visible_ids(renderer.render_instances(T, K_check, cw, ch), structural)
+
+
+def seen_counts(layout: Layout, spec: SceneSpec, renderer: Renderer, poses: np.ndarray) -> Counter[int]:
+    """How many of ``poses`` see each object (the objects a change should touch to be in view)."""
+    check = visibility_check(layout, spec, renderer)
+    return Counter(i for T in poses for i in check(T))
 
 
 def sample_queries(
@@ -372,7 +375,7 @@ def sample_queries(
         min_ang = float(ang[within].min()) if within.any() else float("inf")
         if min_ang < spec.query_min_angle:
             continue
-        n_vis = count_visible(T)
+        n_vis = len(count_visible(T))
         if n_vis < spec.query_min_objects:
             continue
         poses.append(T)
@@ -406,7 +409,7 @@ def sample_near_queries(
                 continue
             window = np.arange(max(a + 1, int(np.ceil(a + 0.3 * (b - a)))), min(b, int(a + 0.7 * (b - a)) + 1))
             for j in (int(j) for j in rng.permutation(window) if int(j) not in chosen):
-                if count_visible(path[j]) >= spec.query_min_objects:
+                if len(count_visible(path[j])) >= spec.query_min_objects:
                     chosen.add(j)
                     break
             if len(chosen) == spec.n_query:

@@ -49,9 +49,14 @@ class Renderer(ABC):
 
     @abstractmethod
     def set_lighting(
-        self, level: float = 1.0, tint: Sequence[float] = (1.0, 1.0, 1.0), lights_off: Sequence[int] = ()
+        self,
+        level: float = 1.0,
+        tint: Sequence[float] = (1.0, 1.0, 1.0),
+        lights_off: Sequence[int] = (),
+        headlight: bool = True,
     ) -> None:
-        """Scale every light by ``level``, multiply its colour by ``tint``, switch off lights by index."""
+        """Scale every light by ``level``, multiply its colour by ``tint``, switch off lights by index
+        and, with ``headlight`` False, the light along the camera's axis."""
 
     @abstractmethod
     def set_instance_pose(self, instance_id: int, T_world: np.ndarray) -> None:

@@ -328,15 +328,19 @@ class MujocoRenderer(Renderer):
         return lut[np.clip(segid, 0, len(lut) - 1)]
 
     def set_lighting(
-        self, level: float = 1.0, tint: Sequence[float] = (1.0, 1.0, 1.0), lights_off: Sequence[int] = ()
+        self,
+        level: float = 1.0,
+        tint: Sequence[float] = (1.0, 1.0, 1.0),
+        lights_off: Sequence[int] = (),
+        headlight: bool = True,
     ) -> None:
         tint_a = np.asarray(tint, dtype=np.float64)
         diffuse, ambient, specular = self._base
         self.model.light_diffuse[:] = diffuse * level * tint_a
         self.model.light_ambient[:] = ambient * level * tint_a
         self.model.light_specular[:] = specular * level
-        self.model.vis.headlight.ambient[:] = self._headlight[0] * level * tint_a
-        self.model.vis.headlight.diffuse[:] = self._headlight[1] * level * tint_a
+        self.model.vis.headlight.ambient[:] = self._headlight[0] * level * tint_a  # MuJoCo's global ambient
+        self.model.vis.headlight.diffuse[:] = self._headlight[1] * level * tint_a * float(headlight)
         self._off = {int(i) for i in lights_off}
         if len(self._off) >= len(self._lights.pos) > 0:
             raise ValueError("at least one light must stay on")

@@ -242,14 +242,18 @@ class PyrenderRenderer(Renderer):
         return seg[..., 0] + (seg[..., 1] << 8) + (seg[..., 2] << 16)
 
     def set_lighting(
-        self, level: float = 1.0, tint: Sequence[float] = (1.0, 1.0, 1.0), lights_off: Sequence[int] = ()
+        self,
+        level: float = 1.0,
+        tint: Sequence[float] = (1.0, 1.0, 1.0),
+        lights_off: Sequence[int] = (),
+        headlight: bool = True,
     ) -> None:
         off = {int(i) for i in lights_off}
         if len(off) >= len(self._lights) > 0:
             raise ValueError("at least one light must stay on")
         self._level, self._tint, self._off = float(level), np.asarray(tint, dtype=np.float64), off
         self.scene.ambient_light = AMBIENT * self._level * self._tint
-        self._headlight.intensity = HEADLIGHT * self._level
+        self._headlight.intensity = HEADLIGHT * self._level * float(headlight)
         self._headlight.color = self._tint
 
     def set_instance_pose(self, instance_id: int, T_world: np.ndarray) -> None:

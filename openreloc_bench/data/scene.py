@@ -42,11 +42,14 @@ QUERY_SPLITS = SPLITS[1:]
 LIGHT_SPLITS = ("query", *(s for s in SPLITS if s.startswith("query_light")))
 """The query split under the mapping's lighting, then its variants under the four decayed lightings."""
 
-DATA_VERSION = 2
+DATA_VERSION = 3
 """Version of the generated benchmark data, recorded in ``scene.json`` as ``data_version``; a reader
 refuses generated scenes of another version rather than mixing them in one result. 1: textures repeated
 exactly every 0.5 m. 2: no surface repeats (each part's texture covers it whole, with a random rotation,
-scale and offset, and metre-scale wear); a ``query_near`` split along the mapping path; ``difficulty.csv``."""
+scale and offset, and metre-scale wear); a ``query_near`` split along the mapping path; ``difficulty.csv``.
+3: a structured-light sensor model (noisy, quantised depth with missing returns; colour noise growing as
+light falls, vignetting, JPEG); queries without a minimum of visible objects; changes among the objects
+the queries see (moved, removed, added); the dark splits without the camera's own light."""
 
 DIFFICULTY_COLUMNS = (
     "split",
@@ -62,7 +65,7 @@ DIFFICULTY_COLUMNS = (
 """Columns of ``difficulty.csv``: per query frame, the distance (m) to the nearest mapping camera and the
 smallest rotation (deg) to a mapping frame within 1 m, the split's light level (1 = mapping lighting),
 the non-structural objects covering at least 0.5% of the image, the image share all of them cover, how
-many of the visible ones were moved (``query_displaced``) and how many have an identical twin in the
+many changes the view holds (``query_displaced``: moved or added objects it shows, removed ones it would show) and how many have an identical twin in the
 scene."""
 DIFFICULTY_AXES = DIFFICULTY_COLUMNS[2:]
 """The difficulty columns of the per-query tables, joined from each scene's ``difficulty.csv``."""

@@ -10,6 +10,7 @@ of thumbnails and low-resolution figures, about 0.1 MB per scene (smoke: 0.12 MB
 
 from __future__ import annotations
 
+import json
 from collections import Counter
 from io import BytesIO
 from pathlib import Path
@@ -40,7 +41,10 @@ AXES: dict[str, tuple[str, tuple[str, ...]]] = {
     "visible_objects": ("objects covering >= 0.5% of the image", ("query", "query_near")),
     "object_area": ("image share covered by objects", ("query", "query_near")),
     "lookalikes_in_view": ("visible objects with an identical twin in the scene", ("query", "query_near")),
-    "displaced_in_view": ("visible objects that were moved", ("query_displaced",)),
+    "displaced_in_view": (
+        "changes in view: moved or added objects it shows, removed ones it would",
+        ("query_displaced",),
+    ),
     "light_level": ("brightness relative to the mapping lighting", QUERY_SPLITS),
 }
 """Each difficulty axis of ``difficulty.csv``: what it measures and the splits whose frames it describes
@@ -256,16 +260,50 @@ def contact_sheet(scene: Scene, difficulty: pd.DataFrame) -> np.ndarray:
     moved = difficulty[(difficulty["scene"] == scene.name) & (difficulty["split"] == "query_displaced")]
     frame = moved.sort_values(["displaced_in_view", "frame"], ascending=[False, True])["frame"].iloc[0]
     rows.append([(s, frame, seqs[s][frame]) for s in QUERY_SPLITS if s != "query_near"])
+    depths = {r.frame_id: r.depth_path for r in scene.sequence("mapping").records}
+    rows.insert(1, [("depth", f, depths[f]) for _, f, _ in rows[0]])
     h = round(THUMB_W * scene.info["intrinsics"]["height"] / scene.info["intrinsics"]["width"])
     sheet = np.full((len(rows) * h, max(map(len, rows)) * THUMB_W, 3), 255, np.uint8)
     for r, row in enumerate(rows):
         for c, (split, frame, path) in enumerate(row):
-            tile = cv2.resize(io.read_rgb(path), (THUMB_W, h), interpolation=cv2.INTER_AREA)
+            image = depth_picture(io.read_depth(path)) if split == "depth" else io.read_rgb(path)
+            tile = cv2.resize(
+                image, (THUMB_W, h), interpolation=cv2.INTER_NEAREST if split == "depth" else cv2.INTER_AREA
+            )
             cv2.rectangle(tile, (0, h - 13), (THUMB_W, h), (0, 0, 0), -1)
             label = f"{split.removeprefix('query_')} {frame}"
             cv2.putText(tile, label, (3, h - 3), cv2.FONT_HERSHEY_SIMPLEX, 0.33, (255, 255, 255), 1, cv2.LINE_AA)
             sheet[r * h : (r + 1) * h, c * THUMB_W : (c + 1) * THUMB_W] = tile
     return sheet
+
+
+def depth_picture(depth: np.ndarray, far_m: float = 6.0) -> np.ndarray:
+    """Metric depth as RGB (turbo colour map up to ``far_m``), missing returns black: the holes a sensor
+    leaves show at a glance."""
+    scaled = np.clip(depth / far_m * 255, 0, 255).astype(np.uint8)
+    rgb = cv2.cvtColor(cv2.applyColorMap(scaled, cv2.COLORMAP_TURBO), cv2.COLOR_BGR2RGB)
+    rgb[depth <= 0] = 0
+    return rgb
+
+
+def sensor_table(scenes: list[Scene]) -> pd.DataFrame:
+    """Every sensor parameter (rows) of each distinct sensor setting among ``scenes`` (columns, headed by
+    the scenes that use it), from ``scene.json``; empty for scenes that record none."""
+    settings: dict[str, list[str]] = {}
+    records: dict[str, dict[str, Any]] = {}
+    for scene in scenes:
+        record = scene.info.get("spec", {}).get("sensor")
+        if record is None:
+            continue
+        flat = pd.json_normalize(record).iloc[0].to_dict()
+        key = json.dumps(flat, sort_keys=True, default=str)
+        settings.setdefault(key, []).append(scene.name)
+        records[key] = flat
+    if not settings:
+        return pd.DataFrame()
+    parameters = list(next(iter(records.values())))
+    columns = {", ".join(names): [records[key].get(p, "") for p in parameters] for key, names in settings.items()}
+    return pd.DataFrame({"parameter": parameters, **columns})
 
 
 def _figure_rgb(fig: plt.Figure) -> np.ndarray:
@@ -340,7 +378,17 @@ def card_markdown(suite: Any, suite_file: str, scenes: list[Scene], difficulty: 
     ]
     twins = lookalike_table(scenes)
     lines += [*_md(twins), ""] if len(twins) else ["None.", ""]
+    sensor = sensor_table(scenes)
     lines += [
+        "## Sensor",
+        "",
+        "The camera that recorded the frames (`model: ideal`: the noiseless render): depth noise and missing "
+        "returns of a structured-light RGB-D camera, colour noise with a gain that rises as light falls, "
+        "vignetting, JPEG, and motion blur on the mapping frames. The second row of each scene's pictures "
+        "shows the mapping frames' depth (missing returns black).",
+        "",
+        *(_md(sensor) if len(sensor) else ["No sensor recorded (data before v3, or imported)."]),
+        "",
         "## Difficulty",
         "",
         "Per query frame, from each scene's `difficulty.csv`; the lighting variants and `query_displaced` "
@@ -354,8 +402,9 @@ def card_markdown(suite: Any, suite_file: str, scenes: list[Scene], difficulty: 
         "",
         "## Scenes in pictures",
         "",
-        "Rows: mapping, query and query_near frames spread over each split; one query viewpoint in every "
-        "variant. The plan: rooms, objects (moved ones in red), the mapping path and the query poses.",
+        "Rows: mapping frames spread over the split, their depth, query and query_near frames; one query "
+        "viewpoint in every variant (the one that sees the most changes). The plan: rooms, objects (changed "
+        "ones in red), the mapping path and the query poses.",
         "",
     ]
     for s in scenes:

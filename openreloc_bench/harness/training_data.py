@@ -40,14 +40,16 @@ class TrainingData:
         return [start + i for i in range(n)]
 
 
-ENCODER_DATA = TrainingData(0, 500_000, dict(max_mapping_frames=24, n_query=8, n_displaced=0))
+ENCODER_DATA = TrainingData(
+    0, 500_000, dict(max_mapping_frames=24, n_query=8, displaced_share=0.0, removed_share=0.0, added_share=0.0)
+)
 """``train-encoder``: crops come from a few frames of each scene."""
 SEGMENTER_DATA = TrainingData(
-    200_000, 700_000, dict(with_floors=True, max_mapping_frames=30, n_query=10, n_displaced=3)
+    200_000, 700_000, dict(with_floors=True, max_mapping_frames=30, n_query=10, displaced_share=0.1)
 )
 """``train-segmenter``: a few frames of every split per scene (frames are sampled per split)."""
 MERGER_DATA = TrainingData(
-    300_000, 800_000, dict(with_floors=True, objects_per_room=30, room_side_max=5.5, n_query=5, n_displaced=2)
+    300_000, 800_000, dict(with_floors=True, objects_per_room=30, room_side_max=5.5, n_query=5, displaced_share=0.1)
 )
 """``train-merger``: scenes as dense as the benchmark suites' (their mapping paths whole); queries are not used."""
 

@@ -22,7 +22,7 @@ TINY = dict(
     mapping_step_deg=30.0,
     max_mapping_frames=16,
     n_query=3,
-    n_displaced=1,
+    displaced_share=0.2,
 )
 
 

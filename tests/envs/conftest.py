@@ -26,7 +26,7 @@ TINY = dict(
     mapping_step_deg=30.0,
     max_mapping_frames=8,
     n_query=2,
-    n_displaced=1,
+    displaced_share=0.2,
     query_min_objects=2,
 )
 

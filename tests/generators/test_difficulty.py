@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from generators.difficulty import frame_difficulty, lookalike_ids, measure_difficulty, viewpoint_gap
+from generators.difficulty import changes_in_view, frame_difficulty, lookalike_ids, measure_difficulty, viewpoint_gap
 from openreloc_bench import geometry
 from openreloc_bench.data.scene import DIFFICULTY_COLUMNS, ObjectInfo
 
@@ -42,8 +42,18 @@ def test_frame_difficulty_counts_visible_objects() -> None:
     inst[50:60, :10] = 2  # 1% of the image
     inst[60:61, :20] = 3  # 0.2%: too small to count as visible
     inst[70:80, :30] = 4
-    out = frame_difficulty(inst, structural={1}, lookalikes={2, 3}, displaced={4})
+    out = frame_difficulty(inst, structural={1}, lookalikes={2, 3}, changes=1)
     assert out == {"visible_objects": 2, "object_area": 0.042, "displaced_in_view": 1, "lookalikes_in_view": 1}
+
+
+def test_changes_in_view_counts_shown_and_removed_objects() -> None:
+    """A moved object counts where the changed view shows it; a removed one where the unchanged view did."""
+    before, after = np.zeros((2, 20, 20), np.int32)
+    before[:10] = 3  # removed: seen before, gone after
+    after[10:] = 4  # moved into view
+    after[:1, :1] = 5  # moved, but too small to count as seen
+    objects = [_obj(3, "lamp"), _obj(4, "chair"), _obj(5, "cup")]
+    assert changes_in_view([after, after], [before, np.zeros_like(before)], {4, 5}, {3}, objects) == [2, 1]
 
 
 def test_measure_difficulty_rows_per_split_and_frame() -> None:
@@ -51,7 +61,7 @@ def test_measure_difficulty_rows_per_split_and_frame() -> None:
     poses = np.stack([geometry.look_at([0, 0.5, 1], [1, 0.5, 1]), geometry.look_at([0, 2, 1], [1, 2, 1])])
     inst = np.zeros((10, 10), np.int32)
     inst[:5] = 7
-    splits = {"query": (poses, 1.0, [inst, inst], set()), "query_light4": (poses, 0.2, [inst, inst], set())}
+    splits = {"query": (poses, 1.0, [inst, inst], None), "query_light4": (poses, 0.2, [inst, inst], None)}
     table = measure_difficulty(mapping, splits, [_obj(7, "lamp")])
     assert tuple(table.columns) == DIFFICULTY_COLUMNS
     assert list(table["split"]) == ["query", "query", "query_light4", "query_light4"]

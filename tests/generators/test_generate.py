@@ -16,6 +16,7 @@ import yaml
 
 from generators.generate import generate_scene, generate_suite
 from generators.layout import build_layout
+from generators.sensor import SensorSpec
 from generators.spec import SceneSpec, load_suite, spec_hash
 from generators.trajectories import mapping_path
 from openreloc_bench import config, geometry
@@ -41,7 +42,7 @@ TINY = dict(
     mapping_step_deg=30.0,
     max_mapping_frames=12,
     n_query=4,
-    n_displaced=2,
+    displaced_share=0.25,
 )
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -49,6 +50,13 @@ ROOT = Path(__file__).resolve().parents[2]
 @pytest.fixture(scope="module")
 def tiny(tmp_path_factory) -> Path:
     return generate_scene(SceneSpec(**TINY), tmp_path_factory.mktemp("a"), progress=False)
+
+
+@pytest.fixture(scope="module")
+def ideal(tmp_path_factory) -> Path:
+    """The tiny scene as the noiseless render records it."""
+    spec = SceneSpec(**TINY, sensor=SensorSpec(model="ideal"))
+    return generate_scene(spec, tmp_path_factory.mktemp("ideal"), progress=False)
 
 
 def _files(root: Path) -> dict[str, bytes]:
@@ -68,7 +76,8 @@ def test_layout_on_disk(tiny: Path) -> None:
         same = np.allclose([r.T_wc for r in seq.records], [r.T_wc for r in q.records])
         assert same == (split != "query_near")  # the variants share the query poses; query_near has its own
         assert np.allclose(seq.K, geometry.intrinsics_from_fov(96, 72, 60.0))
-    assert len(scene.displacements()) == 2
+    kinds = sorted(d["kind"] for d in scene.displacements())
+    assert len(kinds) == 5 and kinds.count("removed") == 1 and kinds.count("added") == 1  # 3 + 1 + 1 of 12 objects
     assert not list(tiny.rglob("*.tmp"))
 
 
@@ -80,8 +89,8 @@ def test_structural_flags(tiny: Path) -> None:
 
 
 @pytest.mark.parametrize("split", ["mapping", "query", "query_light4", "query_displaced"])
-def test_instances_and_depth_match_objects(tiny: Path, split: str) -> None:
-    scene = Scene(tiny)
+def test_instances_and_depth_match_objects(ideal: Path, split: str) -> None:
+    scene = Scene(ideal)
     boxes = {i: o.aabb_array for i, o in scene.objects.items()}
     if split == "query_displaced":
         boxes.update({d["id"]: np.asarray(d["aabb_after"]) for d in scene.displacements()})
@@ -135,12 +144,18 @@ def test_difficulty_measures_every_query_frame(tiny: Path) -> None:
         gaps = [np.linalg.norm(mapping[:, :3, 3] - r.T_wc[:3, 3], axis=1).min() for r in seq.records]
         assert np.allclose(rows["gap_m"], gaps, atol=1e-3)
         structural = {i for i, o in scene.objects.items() if o.structural}
-        moved = {d["id"] for d in scene.displacements()} if split == "query_displaced" else set()
-        for (_, row), frame in zip(rows.iterrows(), seq):
-            ids, counts = np.unique(frame.instance, return_counts=True)
-            big = counts >= 0.005 * frame.instance.size
-            visible = {int(i) for i, b in zip(ids, big) if b and i and int(i) not in structural}
-            assert (row["visible_objects"], row["displaced_in_view"]) == (len(visible), len(visible & moved))
+        changes = scene.displacements() if split == "query_displaced" else []
+        shown = {d["id"] for d in changes if d["kind"] != "removed"}
+        removed = {d["id"] for d in changes if d["kind"] == "removed"}
+
+        def visible(instance: np.ndarray, structural: set[int] = structural) -> set[int]:
+            ids, counts = np.unique(instance, return_counts=True)
+            big = counts >= 0.005 * instance.size
+            return {int(i) for i, b in zip(ids, big) if b and i and int(i) not in structural}
+
+        for (_, row), frame, before in zip(rows.iterrows(), seq, scene.sequence("query")):
+            seen = len(visible(frame.instance) & shown) + len(visible(before.instance) & removed)
+            assert (row["visible_objects"], row["displaced_in_view"]) == (len(visible(frame.instance)), seen)
 
 
 def test_light_variants_darker_and_displaced_differs(tiny: Path) -> None:
@@ -156,6 +171,29 @@ def test_light_variants_darker_and_displaced_differs(tiny: Path) -> None:
     assert any(changed) or not any(moved & set(np.unique(a.instance)) for a in q)
 
 
+def test_the_sensor_records_noisy_depth_and_colour_of_the_same_views(tiny: Path, ideal: Path) -> None:
+    """Same poses and instances; depth off by millimetres to centimetres with missing returns, colour noisy."""
+    for split in ("mapping", "query_light4"):
+        for noisy, clean in zip(Scene(tiny).sequence(split), Scene(ideal).sequence(split)):
+            assert np.array_equal(noisy.T_wc, clean.T_wc) and np.array_equal(noisy.instance, clean.instance)
+            both = (noisy.depth > 0) & (clean.depth > 0)
+            lost = (noisy.depth == 0) & (clean.depth > 0)
+            assert 0 < lost.mean() < 0.5 and both.mean() > 0.4  # tiny frames: edges are a large share
+            err = np.abs(noisy.depth[both] - clean.depth[both])
+            assert 0.0005 < np.median(err) < 0.05
+            assert not np.array_equal(noisy.color, clean.color)
+            assert abs(noisy.color.astype(float).mean() - clean.color.astype(float).mean()) < 15
+
+
+def test_added_objects_only_in_the_displaced_split_and_removed_ones_not_there(tiny: Path) -> None:
+    scene = Scene(tiny)
+    kind = {d["id"]: d["kind"] for d in scene.displacements()}
+    for split in SPLITS:
+        drawn = set().union(*(set(np.unique(f.instance).tolist()) for f in scene.sequence(split)))
+        absent = {i for i, k in kind.items() if k == ("removed" if split == "query_displaced" else "added")}
+        assert not drawn & absent, split
+
+
 def test_byte_identical_and_seed_dependent(tiny: Path, tmp_path: Path) -> None:
     again = generate_scene(SceneSpec(**TINY), tmp_path / "b", progress=False)
     assert _files(again) == _files(tiny)
@@ -164,7 +202,7 @@ def test_byte_identical_and_seed_dependent(tiny: Path, tmp_path: Path) -> None:
 
 
 def test_suite_with_process_pool(tmp_path: Path, tiny: Path) -> None:
-    small = {**TINY, "max_mapping_frames": 4, "n_query": 2, "n_displaced": 1}
+    small = {**TINY, "max_mapping_frames": 4, "n_query": 2, "displaced_share": 0.2}
     suite_yaml = tmp_path / "s.yaml"
     suite_yaml.write_text(
         yaml.safe_dump({"name": "s", "defaults": small, "scenes": [{"name": "x", "seed": 3}, {"name": "y", "seed": 5}]})

@@ -27,7 +27,7 @@ def test_preview_cli(tmp_path: Path) -> None:
             objects_per_room=8,
             max_mapping_frames=6,
             n_query=2,
-            n_displaced=1,
+            displaced_share=0.2,
             query_min_objects=1,  # few of its 8 objects fill 0.5% of a 64x48 frame seen from the mapping path
         ),
         tmp_path,
@@ -82,12 +82,12 @@ def test_the_floor_plan_legend_names_everything_drawn(tmp_path: Path) -> None:
         "walls",
         "doors",
         "objects (2)",
-        "moved objects, before (1)",
-        "moved objects, after (query_displaced)",
+        "changed objects, before (1)",
+        "changed objects, after (query_displaced)",
     ]
     assert len(ax.patches) == 2 + 1 + 1 + 2 + 1  # rooms, wall, door, objects, the moved one's new place
     _, ax = plt.subplots()
-    assert "moved objects, before (1)" not in [h.get_label() for h in draw_floor(ax, scene, 0, displaced=False)]
+    assert "changed objects, before (1)" not in [h.get_label() for h in draw_floor(ax, scene, 0, displaced=False)]
     plt.close("all")
     lo, hi = plan_extent(scene)
     assert lo.tolist() == [-4.0, -4.0] and hi.tolist() == [4.0, 4.0]

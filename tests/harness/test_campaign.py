@@ -12,7 +12,7 @@ from openreloc_bench.harness import cache, campaign, runner
 from openreloc_bench.harness.ablations import ABLATION_ROWS
 from openreloc_bench.harness.leaderboard import campaign_page
 
-SUITE = "name: tiny\nscenes:\n  - {name: t1, seed: 3, width: 32, height: 24, n_query: 2, max_mapping_frames: 2, n_displaced: 0}\n"
+SUITE = "name: tiny\nscenes:\n  - {name: t1, seed: 3, width: 32, height: 24, n_query: 2, max_mapping_frames: 2, displaced_share: 0.0}\n"
 
 
 @pytest.fixture

@@ -23,6 +23,7 @@ from generators.generate import generate_scene
 from generators.spec import load_suite
 from openreloc_bench.cli import main
 from openreloc_bench.commands import card as card_command
+from openreloc_bench.data.scene import DATA_VERSION
 from openreloc_bench.errors import ConfigError, DataError, OpenRelocError
 
 TINY = dict(
@@ -35,7 +36,7 @@ TINY = dict(
     mapping_step_deg=30.0,
     max_mapping_frames=8,
     n_query=2,
-    n_displaced=1,
+    displaced_share=0.2,
     query_min_objects=2,
 )
 SCENES = ("tiny-a", "tiny-b")
@@ -96,8 +97,8 @@ def objects(data: Path, scene: str) -> list[dict]:
 def test_card_names_the_data_version_and_the_suite(written, suite):
     _, text = written
     version = {json.loads((suite[1] / s / "scene.json").read_text())["data_version"] for s in SCENES}
-    assert version == {2}
-    assert "| Data version | v2 |" in text
+    assert version == {DATA_VERSION}
+    assert f"| Data version | v{DATA_VERSION} |" in text
     assert "| Image size | 64x48 |" in text and "| Purpose | benchmark |" in text
     assert text.startswith("# Dataset card: tiny\n") and "two tiny rooms for the card's tests" in text
 
@@ -198,7 +199,7 @@ def test_refuses_scenes_of_mixed_data_versions(suite, tmp_path):
     data = copy_data(suite, tmp_path)
     set_version(data / "tiny-b", 1)
     msg = refusal([str(suite[0]), "--data", str(data), "--out", str(tmp_path / "out")])
-    assert "mixed" in msg and "v1: tiny-b" in msg and "v2: tiny-a" in msg
+    assert "mixed" in msg and "v1: tiny-b" in msg and f"v{DATA_VERSION}: tiny-a" in msg
     assert not (tmp_path / "out").exists()
 
 

@@ -14,7 +14,7 @@ from openreloc_bench.harness.diagnose import boundary_counts, boundary_f, pool
 
 TINY = dict(
     width=320, height=240, objects_per_room=12, room_side_min=3.5, room_side_max=4.0, mapping_step_m=0.5,
-    mapping_step_deg=30.0, max_mapping_frames=16, n_query=3, n_displaced=1,
+    mapping_step_deg=30.0, max_mapping_frames=16, n_query=3, displaced_share=0.2,
 )  # fmt: skip
 
 

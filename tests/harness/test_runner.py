@@ -12,7 +12,7 @@ from harness_test_methods import DIFFICULTY, ORACLE_CONFIDENCE, difficulty_scene
 from openreloc_bench.data import io
 from openreloc_bench.data.results import read_results, read_tum_trajectory
 from openreloc_bench.data.runs import load_map_records, load_run_queries
-from openreloc_bench.data.scene import DIFFICULTY_AXES
+from openreloc_bench.data.scene import DATA_VERSION, DIFFICULTY_AXES
 from openreloc_bench.errors import ConfigError, DataError
 from openreloc_bench.harness import jobs, runner, tables
 from openreloc_bench.harness.runner import EvalConfig, MethodRun
@@ -239,7 +239,7 @@ def test_query_tables_carry_the_scene_difficulty_and_older_tables_still_load(tmp
     runs = out / "runs" / "test-oracle" / "oracle-mask"
     light = pd.read_csv(runs / "sD" / "query_light1.queries.csv")
     np.testing.assert_array_equal(light["gap_deg"], [25.0, np.nan, 90.0])  # frame 000001 has no row
-    assert light["data_version"].tolist() == [2, 2, 2]
+    assert light["data_version"].tolist() == [DATA_VERSION] * 3
     assert light["confidence"].tolist() == [ORACLE_CONFIDENCE] * 3  # what the method said of each pose
     q = load_run_queries(out, uses_masks).set_index(["scene", "query"])
     assert q.loc[("sD", "query/000001"), "visible_objects"] == 2 and q.loc[("sD", "query/000002"), "gap_m"] == 1.5

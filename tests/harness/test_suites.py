@@ -17,7 +17,10 @@ SMOKE = Path(__file__).resolve().parents[2] / "scenes" / "smoke.yaml"
 @pytest.mark.parametrize(
     ("info", "message"),
     [
-        ({"generator_version": "0.1.0+gen2"}, "generated as benchmark data v1, this openreloc-bench reads v2"),
+        (
+            {"generator_version": "0.1.0+gen2"},
+            f"generated as benchmark data v1, this openreloc-bench reads v{DATA_VERSION}",
+        ),
         ({"generator_version": "0.1.0+gen3", "data_version": DATA_VERSION}, "generated from another spec"),
     ],
 )

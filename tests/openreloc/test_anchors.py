@@ -27,7 +27,7 @@ from openreloc_bench.openreloc.map import ObjectMap
 
 TINY = dict(
     width=320, height=240, objects_per_room=12, room_side_min=3.5, room_side_max=4.0, mapping_step_m=0.5,
-    mapping_step_deg=30.0, max_mapping_frames=16, n_query=4, n_displaced=1,
+    mapping_step_deg=30.0, max_mapping_frames=16, n_query=4, displaced_share=0.2,
 )  # fmt: skip
 
 
@@ -117,12 +117,12 @@ def test_map_keeps_keypoints_on_landmarks_only(room: tuple[Scene, Path]) -> None
     m = ObjectMap.load(map_dir)
     assert len(m.anchors) > 100 and m.stats["anchors"] == len(m.anchors)
     assert set(np.unique(m.anchors.landmark)) <= set(m.landmarks)
-    # every anchor lies on its landmark's surface (within the support radius and the points' spacing)
+    # every anchor lies on its landmark's surface (within the sensor's depth noise and the points' spacing)
     for lid in np.unique(m.anchors.landmark)[:5]:
         pts = m.landmarks[int(lid)].points
         on = m.anchors.xyz[m.anchors.landmark == lid]
         nearest = np.min(np.linalg.norm(on[:, None] - pts[None], axis=-1), axis=1)
-        assert np.percentile(nearest, 90) < 0.03 + m.config["landmark_voxel"]
+        assert np.percentile(nearest, 90) < 0.05 + m.config["landmark_voxel"]
 
 
 def test_queries_are_placed_by_their_keypoints_within_centimetres(room: tuple[Scene, Path]) -> None:

@@ -334,7 +334,7 @@ MISTAKES: dict[str, tuple[str, Callable[[World], list[str]], str]] = {
 }  # fmt: skip
 
 
-SUITE_SCENE = "  - {{name: {name}, seed: 3, width: 32, height: 24, n_query: 2, max_mapping_frames: 2, n_displaced: 0, objects_per_room: 4{extra}}}\n"
+SUITE_SCENE = "  - {{name: {name}, seed: 3, width: 32, height: 24, n_query: 2, max_mapping_frames: 2, displaced_share: 0.0, objects_per_room: 4{extra}}}\n"
 
 
 def seven_scenes(w: World, test_split: str) -> Path:

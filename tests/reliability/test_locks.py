@@ -13,7 +13,9 @@ import pytest
 from openreloc_bench.data import paths
 from tests.reliability.conftest import World, checksums, one_line_error, run
 
-SUITE = "scenes:\n  - {name: s1, seed: 3, width: 32, height: 24, n_query: 2, max_mapping_frames: 2, n_displaced: 0}\n"
+SUITE = (
+    "scenes:\n  - {name: s1, seed: 3, width: 32, height: 24, n_query: 2, max_mapping_frames: 2, displaced_share: 0.0}\n"
+)
 
 
 @contextmanager

@@ -74,7 +74,7 @@ def test_an_eval_that_cannot_run_generates_no_scene_first(world: World, capsys) 
         assert not (world.tmp / "gen" / "s1").exists()
 
 
-TINY_SUITE = "scenes:\n  - {name: s1, seed: 3, width: 64, height: 48, n_query: 2, max_mapping_frames: 12, n_displaced: 0, objects_per_room: 12, room_side_min: 4.0, room_side_max: 4.5}\n"  # noqa: E501
+TINY_SUITE = "scenes:\n  - {name: s1, seed: 3, width: 64, height: 48, n_query: 2, max_mapping_frames: 12, displaced_share: 0.0, objects_per_room: 12, room_side_min: 4.0, room_side_max: 4.5}\n"  # noqa: E501
 
 
 def test_regenerating_a_scene_keeps_the_users_files_and_a_failed_run_keeps_the_scene(

@@ -41,6 +41,21 @@ def test_drops_are_changes_from_the_query_split_over_the_same_seeds_in_points() 
     assert "query_light2" not in d.columns  # no method ran it
 
 
+def test_the_displaced_change_is_measured_on_the_views_that_see_a_change() -> None:
+    def rows(split: str, t_err: list[float], changes: list[int]) -> pd.DataFrame:
+        frames = [f"{split}/{i:06d}" for i in range(len(t_err))]
+        return queries("m", "predicted", split, t_err).assign(scene="s", query=frames, displaced_in_view=changes)
+
+    q = pd.concat(
+        [rows("query", [0.1, 0.1, 0.6, 0.6], [0] * 4), rows("query_displaced", [0.6, 0.1, 0.6, 0.6], [1, 0, 2, 0])]
+    )
+    d = robustness_drops(q).set_index(["Method", "Track"])
+    assert d.loc[("m", "predicted"), "query"] == "50.0 / 50.0"
+    assert d.loc[("m", "predicted"), "query_displaced"] == "-50.0 / -50.0 (2 views see a change)"  # frames 0 and 2
+    none = pd.concat([rows("query", [0.1], [0]), rows("query_displaced", [0.6], [0])])
+    assert robustness_drops(none)["query_displaced"].iloc[0] == "no query sees a change"
+
+
 def test_provenance_names_one_commit_or_each() -> None:
     assert provenance(pd.DataFrame({"git_commit": ["abc", "abc"]})) == "Every row comes from commit abc."
     two = pd.DataFrame({"git_commit": ["def", "abc"]})

@@ -22,6 +22,7 @@ from tqdm import tqdm
 
 from generators.difficulty import changes_in_view, measure_difficulty
 from generators.layout import Layout, build_layout
+from generators.odometry import align_to, drift, estimate_trajectory
 from generators.render import Renderer, create_renderer
 from generators.sensor import blend_subframes, exposure_poses, sensor_colour, sensor_depth
 from generators.spec import GENERATOR_VERSION, SceneSpec, SuiteSpec, spec_hash, spec_record
@@ -242,6 +243,10 @@ def write_scene(spec: SceneSpec, root: Path, resume: bool, progress: bool) -> Pa
             log.info("%s: reused %d finished frames", spec.name, reused)
     finally:
         renderer.close()
+    if spec.mapping_poses == "odometry":
+        info = scene_info(spec, layout, K, counts, extra)
+        info["mapping_odometry"] = estimate_mapping_poses(root, writer, mapping, K, progress)
+        writer.write_scene_info(info)
     instances = {s: read_instances(root / s, len(splits[s][0])) for s in ("query", "query_near", "query_displaced")}
     shown = {d.id for d in displacements if d.shown_displaced}
     removed = {d.id for d in displacements if not d.shown_displaced}
@@ -258,6 +263,27 @@ def write_scene(spec: SceneSpec, root: Path, resume: bool, progress: bool) -> Pa
     }
     writer.write_difficulty(measure_difficulty(mapping, measured, layout.objects()))
     return root
+
+
+def estimate_mapping_poses(root: Path, writer: SceneWriter, truth: np.ndarray, K: np.ndarray, progress: bool) -> dict:
+    """Replace the mapping split's poses by those RGB-D odometry estimates from its recorded frames,
+    aligned to the true world frame part by part (a jump between floors splits the sweep); the truth goes
+    to ``mapping/pose_truth``. Returns the record for ``scene.json``: the drift and the pose graph."""
+    frames = [root / "mapping" / k for k in ("color", "depth")]
+    names = [f"{frame_id(i)}.png" for i in range(len(truth))]
+    rgbs = [io.read_rgb(frames[0] / n) for n in names]
+    depths = [io.read_depth(frames[1] / n) for n in names]
+    trajectory = estimate_trajectory(rgbs, depths, K, truth[0], progress=progress)
+    aligned = align_to(trajectory.poses, truth, trajectory.segments)
+    writer.write_poses("mapping", truth, "pose_truth")
+    writer.write_poses("mapping", aligned)
+    error = drift(aligned, truth, trajectory.segments)
+    return {
+        "drift": {k: round(v, 5) for k, v in asdict(error).items()},
+        "segments": int(trajectory.segments.max(initial=-1) + 1),
+        "loop_closures": trajectory.loop_closures,
+        "failed_pairs": trajectory.failed_pairs,
+    }
 
 
 def replace_directory(new: Path, target: Path) -> None:

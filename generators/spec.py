@@ -129,6 +129,11 @@ class SceneSpec:
     Both draw the same geometry and textures, asset packs' included."""
     assets: AssetsSpec = field(default_factory=AssetsSpec)
     """Object sources: asset packs and / or the procedural library."""
+    mapping_poses: Literal["ground-truth", "odometry"] = "ground-truth"
+    """The mapping poses methods are given: the renderer's, or those RGB-D odometry with loop closures
+    and a pose graph estimates from the recorded mapping frames (:mod:`generators.odometry`), aligned to
+    the true world frame as trajectory evaluation does, as a user who mapped with SLAM has them (the
+    truth is kept in ``mapping/pose_truth``, the drift in ``scene.json``)."""
     sensor: SensorSpec = field(default_factory=SensorSpec)
     """The camera that records the frames: a structured-light RGB-D camera, or ``{model: ideal}`` for the
     noiseless render (ablations)."""

@@ -337,7 +337,8 @@ def _image_size(path: Path) -> tuple[int, int]:
 
 
 SCENE_FILES = ("scene.json", "objects.json", "difficulty.csv", "query_displaced/displacements.json")
-FRAME_FOLDERS = ("color", "depth", "instance", "pose", "intrinsic")
+FRAME_FOLDERS = ("color", "depth", "instance", "pose", "intrinsic", "pose_truth")
+"""Folders of a split; ``pose_truth``: the true mapping poses where ``pose`` holds estimated ones."""
 
 
 def foreign_files(root: Path | str) -> list[Path]:
@@ -404,6 +405,13 @@ class SceneWriter:
                 raise ValueError("instance ids must fit in uint16")
             io.write_png(d / "instance" / f"{fid}.png", instance.astype(np.uint16))
         io.atomic_write_text(d / "pose" / f"{fid}.txt", io.format_matrix(T_wc))
+
+    def write_poses(self, split: str, poses: np.ndarray, folder: str = "pose") -> None:
+        """Write every frame's pose of ``split`` into ``folder`` (e.g. estimated poses over rendered ones)."""
+        for i, T in enumerate(poses):
+            fid = frame_id(i)
+            T = geometry.check_pose(T, f"{split}/{fid}")
+            io.atomic_write_text(self.root / split / folder / f"{fid}.txt", io.format_matrix(T))
 
     def write_difficulty(self, table: pd.DataFrame) -> None:
         io.atomic_write_text(self.root / "difficulty.csv", table.to_csv(index=False))

@@ -20,6 +20,7 @@ from generators.sensor import SensorSpec
 from generators.spec import SceneSpec, load_suite, spec_hash
 from generators.trajectories import mapping_path
 from openreloc_bench import config, geometry
+from openreloc_bench.data import io
 from openreloc_bench.data.scene import (
     DATA_VERSION,
     DIFFICULTY_COLUMNS,
@@ -183,6 +184,22 @@ def test_the_sensor_records_noisy_depth_and_colour_of_the_same_views(tiny: Path,
             assert 0.0005 < np.median(err) < 0.05
             assert not np.array_equal(noisy.color, clean.color)
             assert abs(noisy.color.astype(float).mean() - clean.color.astype(float).mean()) < 15
+
+
+def test_odometry_mapping_poses_replace_the_truth_which_is_kept(tiny: Path, tmp_path: Path) -> None:
+    """With ``mapping_poses: odometry`` the mapping split holds estimated poses near the truth, the truth is
+    in ``pose_truth`` and ``scene.json`` records the drift those files show; the images are the same."""
+    root = generate_scene(SceneSpec(**TINY, mapping_poses="odometry"), tmp_path, progress=False)
+    truth = Scene(tiny).sequence("mapping")
+    estimated = Scene(root).sequence("mapping")
+    kept = np.array([io.read_matrix(root / "mapping" / "pose_truth" / f"{r.frame_id}.txt") for r in truth.records])
+    assert np.allclose(kept, truth.poses, atol=1e-6)
+    assert np.array_equal(estimated[0].color, truth[0].color)
+    error = np.linalg.norm(estimated.poses[:, :3, 3] - truth.poses[:, :3, 3], axis=1)
+    record = Scene(root).info["mapping_odometry"]
+    assert record["drift"]["ate_max_m"] == pytest.approx(error.max(), abs=1e-4)
+    assert 0 < error.max() < 1.0 and record["segments"] >= 1  # 96 x 72 frames 0.5 m apart: a rough estimate
+    assert Scene(root).sequence("query").poses.tolist() == Scene(tiny).sequence("query").poses.tolist()
 
 
 def test_added_objects_only_in_the_displaced_split_and_removed_ones_not_there(tiny: Path) -> None:

@@ -200,7 +200,19 @@ def create_method(name: str, **config: Any) -> Relocalizer:
     if name not in methods:
         known = ", ".join(sorted(methods)) or "none"
         raise ConfigError(f"unknown method '{name}' (registered: {known})")
-    return methods[name](**config)
+    method = methods[name](**config)
+    missing = [a for a in RELOCALIZER_ATTRIBUTES if not hasattr(method, a)]
+    if missing:
+        raise ConfigError(
+            f"method '{name}': its {type(method).__name__} has no {', '.join(repr(a) for a in missing)}; a method "
+            f"needs {', '.join(RELOCALIZER_ATTRIBUTES)} (see openreloc_bench.methods.Relocalizer)"
+        )
+    return method
+
+
+RELOCALIZER_ATTRIBUTES = ("name", "build_map", "load_map", "localize")
+"""What every method has (:class:`Relocalizer`): checked when it is created, so a plugin missing one is
+a one-line error rather than a traceback deep in a run."""
 
 
 def method_config(method: Relocalizer) -> dict[str, Any]:

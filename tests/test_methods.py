@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from baselines.nearest_frame import NearestFrame
+from openreloc_bench import methods
 from openreloc_bench.data.types import Frame
 from openreloc_bench.errors import ConfigError
 from openreloc_bench.methods import (
@@ -40,6 +41,19 @@ def test_unknown_config_key():
 def test_in_process_registration():
     register("test-identity", NearestFrame)
     assert isinstance(create_method("test-identity"), NearestFrame)
+
+
+def test_a_method_without_a_name_is_a_one_line_error(monkeypatch) -> None:
+    class Nameless:
+        def build_map(self, mapping, map_dir) -> None: ...
+
+        def load_map(self, map_dir) -> None: ...
+
+        def localize(self, query) -> None: ...
+
+    monkeypatch.setitem(methods._REGISTRY, "nameless", Nameless)  # gone after the test
+    with pytest.raises(ConfigError, match="method 'nameless': its Nameless has no 'name'; a method needs name, "):
+        create_method("nameless")
 
 
 def test_methods_read_masks_unless_they_say_otherwise() -> None:

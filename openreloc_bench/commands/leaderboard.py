@@ -24,7 +24,11 @@ ORDER = 50
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("results", type=Path, nargs="+", metavar="RESULTS", help="results directories")
-    p.add_argument("--out", type=Path, default=Path("leaderboard"), help="output directory")
+    p.add_argument(
+        "--out",
+        type=Path,
+        help="output directory (default: beside the first RESULTS, named after it: results/mine -> results/mine-board)",
+    )
     p.add_argument(
         "--data",
         type=Path,
@@ -33,8 +37,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_plugin_argument(p)
 
 
+def default_out(results: Path) -> Path:
+    """The board's folder when --out is not given: a sibling of the results, never inside them nor in the
+    repository's committed ``leaderboard/``."""
+    resolved = results.resolve()
+    return resolved.parent / f"{resolved.name}-board"
+
+
 def run(args: argparse.Namespace) -> int:
     from openreloc_bench.harness import leaderboard  # matplotlib: only when used
 
-    leaderboard.main(args.results, args.out, args.data)
+    leaderboard.main(args.results, args.out or default_out(args.results[0]), args.data)
     return 0

@@ -219,11 +219,11 @@ def refuse_pooling(out: Path, query_jobs: list[QueryJob]) -> None:
     """ConfigError when ``out`` holds finished runs of a method variant and track that this run does not
     redo (another scene or split) but made with other settings: the tables would pool both into one row,
     with one config hash shown for them."""
-    planned = {j.marker for j in query_jobs}
+    planned = {j.marker.resolve() for j in query_jobs}  # one file however --out is spelled
     wanted = {(j.run.label, j.track): j.provenance["config_hash"] for j in query_jobs}
     for (label, track), config_hash in wanted.items():
         for marker in sorted((out / "runs" / label / track).glob("*/*.done.json")):
-            if marker in planned:
+            if marker.resolve() in planned:
                 continue  # redone (or resumed) by this run
             try:
                 done = io.read_json(marker)

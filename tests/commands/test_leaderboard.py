@@ -111,6 +111,16 @@ def test_leaderboard_pools_the_seeds_of_a_variant(results: tuple[Path, Path], tm
     assert len(board) == 1 and "| Seeds |" in (tmp_path / "board" / "leaderboard.md").read_text()
 
 
+def test_the_default_board_folder_is_beside_the_results(results: tuple[Path, Path], monkeypatch, capsys) -> None:
+    """Without --out the board goes next to the first results folder, not into the working directory's
+    (or the repository's) ``leaderboard/``."""
+    root, _ = results
+    monkeypatch.chdir(root)
+    assert main(["leaderboard", "res"]) == 0
+    assert (root / "res-board" / "leaderboard.md").is_file() and not (root / "leaderboard").exists()
+    assert f"to {root / 'res-board'}" in capsys.readouterr().out
+
+
 def test_leaderboard_of_an_empty_directory_is_a_clear_error(tmp_path: Path, capsys) -> None:
     assert main(["leaderboard", str(tmp_path), "--out", str(tmp_path / "b")]) == 2
     assert "no tables/queries.csv" in capsys.readouterr().err

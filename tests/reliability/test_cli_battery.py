@@ -451,6 +451,19 @@ def test_runs_with_other_settings_are_never_pooled_into_one_row(world: World, ca
     assert run(eval_argv(world, *other, "--resume", scenes="sA,sB"), capsys)[0] == 0  # redoing sA pools nothing
 
 
+def test_a_relative_out_redoing_the_same_scene_with_other_settings_is_not_refused(
+    world: World, capsys, monkeypatch
+) -> None:
+    """Retuning a method and rerunning the same scene into a relative --out redoes the run (the finished
+    run's marker and the planned one are the same file, however --out is spelled)."""
+    monkeypatch.chdir(world.tmp)
+    argv = ["eval", "--scenes", "sA", "--methods", "nearest-frame", "--data", str(world.data), "--out", "res"]
+    assert run(argv, capsys)[0] == 0
+    cfg = write_input(world, "cfg.yaml", b"thumb_size: 8\n")
+    code, out, _ = run([*argv, "--method-config", f"nearest-frame={cfg}"], capsys)
+    assert code == 0 and "jobs: 1 run" in out, out
+
+
 def test_an_incomplete_scene_is_refused_by_every_command(world: World, capsys) -> None:
     (world.scene / "query" / "pose" / "000002.txt").unlink()  # as a killed generator leaves a scene
     info = json.loads((world.scene / "scene.json").read_text())

@@ -47,6 +47,8 @@ predict relocalization (see ``TrainConfig.epochs``)."""
 
 MIN_ROOM_SIDE_M = 2.0
 """Smallest room side that still fits furniture and a camera path."""
+MAX_ROOM_SIDE_M = 30.0
+"""Largest room side: the layout grids grow with the square of it (1e6 m would ask for hundreds of TiB)."""
 
 MAX_OBJECTS_PER_M2 = 2.5
 """Upper bound on objects per square metre of the smallest possible room (floor + surface + wall items)."""
@@ -182,6 +184,8 @@ def validate_scene(spec: SceneSpec) -> None:
         raise ConfigError(f"scene '{n}': 'fov_y' must be below 170 degrees, got {spec.fov_y}")
     if spec.room_side_min < MIN_ROOM_SIDE_M:
         raise ConfigError(f"scene '{n}': 'room_side_min' must be >= {MIN_ROOM_SIDE_M} m, got {spec.room_side_min}")
+    if spec.room_side_max > MAX_ROOM_SIDE_M:
+        raise ConfigError(f"scene '{n}': 'room_side_max' must be at most {MAX_ROOM_SIDE_M} m, got {spec.room_side_max}")
     if spec.room_side_max < spec.room_side_min:
         raise ConfigError(
             f"scene '{n}': 'room_side_max' ({spec.room_side_max}) is below 'room_side_min' ({spec.room_side_min})"

@@ -151,7 +151,11 @@ _REGISTRY: dict[str, Callable[..., Relocalizer]] = {}
 
 
 def register(name: str, factory: Callable[..., Relocalizer]) -> None:
-    """Register a method factory under ``name`` (in-process; packages should use entry points)."""
+    """Register a method factory under ``name`` (in-process; packages should use entry points). A name
+    an installed package's entry point holds is refused: its results would be filed under the other
+    method's name."""
+    for ep in entry_points(group=ENTRY_POINT_GROUP, name=name):
+        raise ConfigError(f"method name '{name}' is taken by {ep.value}: register yours under another name")
     _REGISTRY[name] = factory
 
 

@@ -78,6 +78,13 @@ def test_an_installed_module_stays_a_module_name(plugin_sandbox: Path) -> None:
         ),
         ({"json.py": FREE_PLUGIN}, "json.py", r"^plugin json\.py: a module named 'json' is loaded already"),
         ({}, " ", r"^--plugin names nothing"),
+        (
+            {
+                "clash.py": "from baselines.nearest_frame import NearestFrame\nfrom openreloc_bench.methods import register\nregister('nearest-frame', NearestFrame)\n"
+            },
+            "clash.py",
+            r"^plugin clash\.py: clash\.py line 3: ConfigError: method name 'nearest-frame' is taken by baselines\.nearest_frame",
+        ),
     ],
 )
 def test_a_bad_plugin_is_one_line_naming_it_and_the_cause(

@@ -58,6 +58,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.submission.resolve() == args.data.resolve() or (args.submission / "scene.json").is_file():
+        raise ConfigError(f"{args.submission}: is a dataset, not a submission; give the folder of your pose files")
     if args.suite:
         scenes = suite_scene_names(args.suite)
     else:
@@ -70,6 +72,10 @@ def run(args: argparse.Namespace) -> int:
     name = args.submission.resolve().name
     out = args.out or Path(f"{name}-scores")
     paths.check_output(out, [args.submission, *(args.data / s for s in scenes)], "--out")
+    if (out / "runs").is_dir():
+        raise ConfigError(
+            f"--out {out}: holds an evaluation's results (runs/), whose tables this would replace; choose another --out"
+        )
     track = score.submission_track(args.submission, scenes, args.track, SUBMISSION_TRACKS)
     queries = score.score_submission(args.submission, args.data, scenes, splits, args.method or name, track, args.names)
     maps = pd.DataFrame(columns=["map_hash", "scene", "map_mb", "mapping_time_s"])

@@ -122,6 +122,16 @@ MISTAKES: dict[str, tuple[str, Callable[[World], list[str]], str]] = {
         lambda w: ["score", str(submission(w, "query/000000 1 0 0 0 0 0 0\n")), "--data", str(w.data), "--splits", "mapping", "--out", str(w.tmp / "s")],
         "--splits: 'mapping' built the maps; scoring poses of its own frames measures nothing",
     ),
+    "score: the dataset given as the submission": (
+        "score",
+        lambda w: ["score", str(w.data), "--data", str(w.data), "--out", str(w.tmp / "s")],
+        "is a dataset, not a submission",
+    ),
+    "score --out: an eval's results folder": (
+        "score",
+        lambda w: ["score", str(submission(w, "query/000000 1 0 0 0 0 0 0\n")), "--data", str(w.data), "--out", str(eval_results(w))],
+        "holds an evaluation's results (runs/)",
+    ),
     "score: a per-scene file with a mistyped split": (
         "score",
         lambda w: ["score", str(submission(w, "Query/000000 1 0 0 0 0 0 0\n")), "--data", str(w.data), "--out", str(w.tmp / "s")],
@@ -384,6 +394,13 @@ def results_with(w: World, queries_csv: bytes) -> Path:
     r = w.inputs / "results"
     (r / "tables").mkdir(parents=True, exist_ok=True)
     (r / "tables" / "queries.csv").write_bytes(queries_csv)
+    return r
+
+
+def eval_results(w: World) -> Path:
+    """A folder laid out as an evaluation's results: finished runs and their tables."""
+    r = results_with(w, HEADER_ONLY)
+    (r / "runs").mkdir(exist_ok=True)
     return r
 
 

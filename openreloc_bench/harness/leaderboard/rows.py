@@ -291,8 +291,10 @@ def binned_recall(queries: pd.DataFrame, axis: str, bins: Sequence[float] | None
             raise ValueError(f"bins of '{axis}' must be two or more increasing edges, got {list(bins)}")
         lo, hi = edges[:-1], edges[1:]
         index = np.searchsorted(edges, values, side="right") - 1
+        if np.isposinf(edges[-1]):  # an open last bin holds infinity too
+            index[np.isposinf(values)] = len(lo) - 1
         known &= (index >= 0) & (index < len(lo))
-        finite = np.r_[values[known], edges[np.isfinite(edges)]]
+        finite = np.r_[values[known & np.isfinite(values)], edges[np.isfinite(edges)]]
         labels = _bin_labels(edges, integral=bool(np.all(finite % 1 == 0)))
     rows = []
     picked = queries[known].assign(_bin=index[known])

@@ -82,6 +82,8 @@ def test_binned_recall_counts_queries_and_pools_seeds_per_bin() -> None:
     objects = binned_recall(q[q["method"] == "a"], "visible_objects", (0, 1, 2, 4, np.inf)).set_index("bin")
     assert list(objects.index) == ["0", "1", "2–3", "4+"]  # whole numbers: the counts a bin holds
     assert objects.loc["4+", ["n", "recall_50cm", "recall_25cm"]].tolist() == [2, 50, 0]
+    far = q.assign(gap_m=q["gap_m"].replace(3.0, np.inf))  # an infinite gap lands in the open last bin
+    assert binned_recall(far, "gap_m", (0, 1, np.inf)).groupby("bin")["n"].sum().to_dict() == {"0–1": 7, "≥1": 1}
     light = binned_recall(q[q["method"] == "a"], "light_level", None).set_index("bin")
     assert list(light.index) == ["0.5", "1"] and light["n"].tolist() == [2, 4] and light.loc["0.5", "lo"] == 0.5
     with pytest.raises(ValueError, match="increasing edges"):

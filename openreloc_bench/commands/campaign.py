@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from openreloc_bench.data import paths
 from openreloc_bench.harness.executors import EXECUTORS
 
 NAME = "campaign"
@@ -49,6 +50,9 @@ def run(args: argparse.Namespace) -> int:
     from openreloc_bench.harness import campaign
 
     plan = campaign.load_plan(args.plan)
+    for flag, folder in (("--work", args.work), ("--out", args.out)):
+        if folder is not None and not args.list:
+            paths.check_writable_folder(folder, flag)
     if args.list:
         campaign.list_steps(plan, args.work)
         return 0

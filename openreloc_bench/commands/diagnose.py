@@ -80,6 +80,7 @@ def run(args: argparse.Namespace) -> int:
     for out in (args.work, args.out):
         if out is not None:
             paths.check_output(out, scene_dirs, "output folder")
+            paths.check_writable_folder(out, "output folder")
     overrides = method_overrides(args)
     rows = [diagnose_scene(d, overrides, options, args.work, out_dir=args.out) for d in scene_dirs]
     result = {"track": options.track, "pooled": pool(rows), "scenes": rows}

@@ -75,14 +75,28 @@ def check_writable_file(output: Path, what: str) -> Path:
     out = Path(output)
     if out.is_dir():
         raise ConfigError(f"{what} {output} is a directory; give a file path")
-    folder = out.resolve().parent
+    _check_creatable(out.resolve().parent, output, what)
+    if out.exists() and not os.access(out, os.W_OK):
+        raise ConfigError(f"{what} {output} is not writable")
+    return out
+
+
+def check_writable_folder(output: Path, what: str) -> Path:
+    """:func:`check_writable_file` for a folder a command fills: it, or the folder it would be made in,
+    must be a writable folder."""
+    out = Path(output)
+    if out.exists() and not out.is_dir():
+        raise ConfigError(f"{what} {output} is a file; give a folder")
+    _check_creatable(out.resolve(), output, what)
+    return out
+
+
+def _check_creatable(folder: Path, output: Path, what: str) -> None:
+    """ConfigError unless ``folder``'s nearest existing ancestor (itself, if it exists) is a writable folder."""
     while not folder.exists():
         folder = folder.parent
     if not folder.is_dir() or not os.access(folder, os.W_OK | os.X_OK):
         raise ConfigError(f"{what} {output}: cannot write in {folder}")
-    if out.exists() and not os.access(out, os.W_OK):
-        raise ConfigError(f"{what} {output} is not writable")
-    return out
 
 
 @contextmanager

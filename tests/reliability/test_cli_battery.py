@@ -122,6 +122,16 @@ MISTAKES: dict[str, tuple[str, Callable[[World], list[str]], str]] = {
         lambda w: ["score", str(submission(w, "query/000000 1 0 0 0 0 0 0\n")), "--data", str(w.data), "--splits", "mapping", "--out", str(w.tmp / "s")],
         "--splits: 'mapping' built the maps; scoring poses of its own frames measures nothing",
     ),
+    "localize --out: inside a file": (
+        "localize",
+        lambda w: ["localize", "--method", "nearest-frame", "--map", str(w.map_dir), "--scene", str(w.scene), "--out", str(w.inputs / "file.txt" / "p.txt")],
+        "cannot write in",
+    ),
+    "diagnose --out: a file": (
+        "diagnose",
+        lambda w: ["diagnose", "--scenes", str(w.scene), "--work", str(w.tmp / "dw"), "--out", str(w.inputs / "file.txt")],
+        "is a file; give a folder",
+    ),
     "score: the dataset given as the submission": (
         "score",
         lambda w: ["score", str(w.data), "--data", str(w.data), "--out", str(w.tmp / "s")],

@@ -28,6 +28,7 @@ from typing import Any
 
 from openreloc_bench.commands.options import add_method_config_arguments, add_track_argument, method_overrides
 from openreloc_bench.errors import ConfigError
+from openreloc_bench.tracks import PREDICTED
 
 NAME = "diagnose"
 HELP = "OpenReLoc's losses stage by stage (segmentation, 3D instances, association, poses)"
@@ -75,6 +76,8 @@ def run(args: argparse.Namespace) -> int:
     )
     if options.frames < 1:
         raise ConfigError(f"--frames must be >= 1, got {options.frames}")
+    if options.swap and options.track != PREDICTED:
+        raise ConfigError(f"--swap swaps predicted masks for the dataset's: it needs --track {PREDICTED}")
     if options.pictures < 0 or (options.pictures and args.out is None):
         raise ConfigError("--pictures takes a count >= 0 and needs --out (the folder they are written to)")
     for out in (args.work, args.out):

@@ -127,6 +127,11 @@ MISTAKES: dict[str, tuple[str, Callable[[World], list[str]], str]] = {
         lambda w: ["localize", "--method", "nearest-frame", "--map", str(w.map_dir), "--scene", str(w.scene), "--out", str(w.inputs / "file.txt" / "p.txt")],
         "cannot write in",
     ),
+    "diagnose --swap on the oracle-mask track": (
+        "diagnose",
+        lambda w: ["diagnose", "--scenes", str(w.scene), "--work", str(w.tmp / "dw"), "--track", "oracle-mask", "--swap"],
+        "--swap swaps predicted masks for the dataset's: it needs --track predicted",
+    ),
     "diagnose --out: a file": (
         "diagnose",
         lambda w: ["diagnose", "--scenes", str(w.scene), "--work", str(w.tmp / "dw"), "--out", str(w.inputs / "file.txt")],

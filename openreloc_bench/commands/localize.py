@@ -110,6 +110,8 @@ def run(args: argparse.Namespace) -> int:
     scene = Scene(args.scene)
     seq = scene.sequence(args.split)
     track = recorded_track(method, args.track)
+    if track == ORACLE_MASK:
+        scene.check_masks([args.split])
     check_map_source(args.map, scene, track)
     method.load_map(args.map)
     seq.load_instances = track == ORACLE_MASK

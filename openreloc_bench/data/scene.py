@@ -282,6 +282,19 @@ class Scene:
             raise DataError(path, f"frame {twice['frame'].iloc[0]} of split '{twice['split'].iloc[0]}' has two rows")
         return table
 
+    def check_masks(self, splits: list[str]) -> None:
+        """DataError unless every frame of ``splits`` has its instance image: the oracle-mask track gives
+        each frame its masks, and a frame without them would be a method's failure or an unmasked map."""
+        for split in splits:
+            records = self.sequence(split).records
+            missing = [r.frame_id for r in records if r.instance_path is None]
+            if missing:
+                raise DataError(
+                    self.root / split,
+                    f"{len(missing)} of {len(records)} frames have no instance image (first: {missing[0]}); "
+                    "the oracle-mask track needs every one: use --track predicted",
+                )
+
     def displacements(self) -> list[dict[str, Any]]:
         """The moved objects of ``query_displaced`` (each names an object of ``objects.json``)."""
         p = self.root / "query_displaced" / "displacements.json"

@@ -26,7 +26,7 @@ from openreloc_bench.data import io, mapfile
 from openreloc_bench.data.scene import Scene
 from openreloc_bench.errors import ConfigError, DataError
 from openreloc_bench.methods import Relocalizer, map_config
-from openreloc_bench.tracks import ORACLE_MASK, RecordedTrack
+from openreloc_bench.tracks import MASK_FREE, ORACLE_MASK, RecordedTrack
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 
@@ -163,7 +163,8 @@ def check_map_source(map_dir: Path, scene: Scene, track: RecordedTrack | None = 
         )
     built = source.get("track") if source is not None else None
     if track is not None and built is not None and built != track:
+        other = "" if built == MASK_FREE else f"localize with --track {built}, or "  # no --track takes mask-free
         raise ConfigError(
-            f"{map_dir} is a map of the {built} track, not of the {track} track: localize with --track {built}, "
-            f"or build a map with 'openreloc-bench map --track {track}'"
+            f"{map_dir} is a map of the {built} track, not of the {track} track: {other}"
+            f"build a map with 'openreloc-bench map --track {track}'"
         )

@@ -34,7 +34,7 @@ from openreloc_bench.harness.jobs import (
     run_map_job,
     run_query_job,
 )
-from openreloc_bench.methods import Relocalizer, create_method, method_config, recorded_track
+from openreloc_bench.methods import Relocalizer, create_method, method_config, recorded_track, uses_masks
 from openreloc_bench.tracks import DEFAULT_TRACK, MASK_FREE, ORACLE_MASK, TRACKS, Track
 
 
@@ -111,10 +111,8 @@ def list_jobs(cfg: EvalConfig) -> tuple[list[MapJob], list[QueryJob]]:
             # an incomplete or inconsistent scene fails here, before any work
             sizes[name, split] = len(scene.sequence(split))
         scene.difficulty()  # so does a broken difficulty table (the query tables join it)
-        if cfg.track == ORACLE_MASK:
-            for split in cfg.splits:
-                if not (scene.root / split / "instance").is_dir():
-                    raise DataError(scene.root / split, "no instance masks: use --track predicted")
+        if cfg.track == ORACLE_MASK and any(uses_masks(run.method) for run in cfg.runs):
+            scene.check_masks(["mapping", *cfg.splits])
         scenes[name] = scene
     # the results folder (what the run creates, replaces, cleans of stray temps) holds no scene, nor is in one
     paths.check_output(cfg.out, [s.root for s in scenes.values()], "results folder")

@@ -496,6 +496,29 @@ def test_a_relative_out_redoing_the_same_scene_with_other_settings_is_not_refuse
     assert code == 0 and "jobs: 1 run" in out, out
 
 
+def test_the_oracle_mask_track_refuses_frames_without_instance_images(world: World, capsys) -> None:
+    """A missing instance image was a method's failure (query) or an unmasked frame (mapping), exit 0."""
+    (world.scene / "mapping" / "instance" / "000001.png").unlink()
+    (world.scene / "query" / "instance" / "000002.png").unlink()
+    cases = [
+        ("map", ["map", "--method", "openreloc", "--scene", str(world.scene), "--out", str(world.tmp / "m"), "--track", "oracle-mask"], "mapping"),
+        ("eval", eval_argv(world, "--track", "oracle-mask", methods="openreloc"), "mapping"),
+        ("localize", ["localize", "--method", "openreloc", "--map", str(world.map_dir), "--scene", str(world.scene), "--out", str(world.tmp / "p.txt"), "--track", "oracle-mask"], "query"),
+    ]  # fmt: skip
+    for command, argv, split in cases:
+        code, _, err = run(argv, capsys)
+        one_line_error(code, err, command, f"{split}: 1 of ")
+        assert "have no instance image" in err and "use --track predicted" in err
+    assert run(eval_argv(world, "--track", "oracle-mask"), capsys)[0] == 0  # nearest-frame reads no masks
+
+
+def test_a_mask_free_map_for_a_method_reading_masks_advises_no_track_localize_lacks(world: World, capsys) -> None:
+    argv = ["localize", "--method", "openreloc", "--map", str(world.map_dir), "--scene", str(world.scene)]
+    code, _, err = run([*argv, "--out", str(world.tmp / "p.txt"), "--track", "oracle-mask"], capsys)
+    one_line_error(code, err, "localize", "is a map of the mask-free track, not of the oracle-mask track: build a map")
+    assert "--track mask-free" not in err
+
+
 def test_an_incomplete_scene_is_refused_by_every_command(world: World, capsys) -> None:
     (world.scene / "query" / "pose" / "000002.txt").unlink()  # as a killed generator leaves a scene
     info = json.loads((world.scene / "scene.json").read_text())

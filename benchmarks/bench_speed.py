@@ -84,8 +84,7 @@ def build_maps(method_name: str, map_track: str, scenes: list[Scene], work: Path
         if reuse and record.is_file():
             out[scene.name] = json.loads(record.read_text())
             continue
-        seq = scene.sequence("mapping")
-        seq.load_instances = map_track == ORACLE_MASK
+        seq = scene.sequence("mapping", map_track)
         map_dir.mkdir(parents=True, exist_ok=True)
         method = create_method(method_name)
         if profiler is not None:

@@ -32,7 +32,7 @@ from openreloc_bench.data.types import SceneSequence
 from openreloc_bench.errors import ConfigError
 from openreloc_bench.harness.cache import check_map_source
 from openreloc_bench.methods import Answer, QueryFrame, Relocalizer, create_method, localize_safely, recorded_track
-from openreloc_bench.tracks import ORACLE_MASK, RecordedTrack
+from openreloc_bench.tracks import RecordedTrack
 
 NAME = "localize"
 HELP = "localize a query split against a map and write poses"
@@ -108,13 +108,10 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError(f"--diagnostics and --out are the same file {args.out}; give two paths")
     method = create_method(args.method, **method_overrides(args))
     scene = Scene(args.scene)
-    seq = scene.sequence(args.split)
     track = recorded_track(method, args.track)
-    if track == ORACLE_MASK:
-        scene.check_masks([args.split])
+    seq = scene.sequence(args.split, track)
     check_map_source(args.map, scene, track)
     method.load_map(args.map)
-    seq.load_instances = track == ORACLE_MASK
     records = localize_split(method, seq, track)
     poses = {r.name: r.T_wc for r in records if r.T_wc is not None}
     write_results(

@@ -22,7 +22,6 @@ from openreloc_bench.data import mapfile, paths
 from openreloc_bench.data.scene import Scene
 from openreloc_bench.harness.cache import build_map, dir_bytes
 from openreloc_bench.methods import create_method, recorded_track
-from openreloc_bench.tracks import ORACLE_MASK
 
 NAME = "map"
 HELP = "build a method's map from a scene's mapping split"
@@ -41,8 +40,7 @@ def run(args: argparse.Namespace) -> int:
     method = create_method(args.method, **method_overrides(args))
     scene = Scene(args.scene)
     track = recorded_track(method, args.track)
-    if track == ORACLE_MASK:
-        scene.check_masks(["mapping"])
+    scene.sequence("mapping", track)  # refused before any work, as the build would refuse it
     # the directory holds the map alone (its size is the map's): a previous map there is replaced once
     # the new one is complete (built beside it), anything else is refused; no other build writes there
     with paths.directory_lock(args.out, "openreloc-bench map", in_directory=False):

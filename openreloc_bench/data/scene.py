@@ -32,6 +32,7 @@ from openreloc_bench import geometry
 from openreloc_bench.data import io
 from openreloc_bench.data.types import FrameRecord, SceneSequence, check_intrinsics
 from openreloc_bench.errors import DataError
+from openreloc_bench.tracks import ORACLE_MASK, RecordedTrack
 
 LIGHT_SPLITS = ("query", "query_light1", "query_light2", "query_light3", "query_light4")
 """The query split and its relit copies, by light level (0: the scene's own lights, up to 4), on the same poses."""
@@ -234,10 +235,17 @@ class Scene:
             p.name for p in self.root.iterdir() if p.is_dir() and p.name not in SPLITS and (p / "pose").is_dir()
         )
 
-    def sequence(self, split: str) -> SceneSequence:
-        """One split, checked against ``scene.json`` (frame count, image size, intrinsics) where it says them."""
+    def sequence(self, split: str, track: RecordedTrack | None = None) -> SceneSequence:
+        """One split, checked against ``scene.json`` (frame count, image size, intrinsics) where it says them.
+
+        With ``track``, the frames as that track gives them to a method: with the dataset's instance images
+        on the oracle-mask track (DataError unless every frame has one), without on the others; without
+        ``track``, with those that exist."""
         seq = read_split(self.root / split, split)
         self._check_against_info(seq)
+        if track == ORACLE_MASK:
+            self._check_masks(seq)
+        seq.load_instances = track in (None, ORACLE_MASK)
         return seq
 
     def _check_against_info(self, seq: SceneSequence) -> None:
@@ -282,18 +290,16 @@ class Scene:
             raise DataError(path, f"frame {twice['frame'].iloc[0]} of split '{twice['split'].iloc[0]}' has two rows")
         return table
 
-    def check_masks(self, splits: list[str]) -> None:
-        """DataError unless every frame of ``splits`` has its instance image: the oracle-mask track gives
-        each frame its masks, and a frame without them would be a method's failure or an unmasked map."""
-        for split in splits:
-            records = self.sequence(split).records
-            missing = [r.frame_id for r in records if r.instance_path is None]
-            if missing:
-                raise DataError(
-                    self.root / split,
-                    f"{len(missing)} of {len(records)} frames have no instance image (first: {missing[0]}); "
-                    "the oracle-mask track needs every one: use --track predicted",
-                )
+    def _check_masks(self, seq: SceneSequence) -> None:
+        """DataError unless every frame of ``seq`` has its instance image: on the oracle-mask track a frame
+        without one would be a method's failure or an unmasked map frame."""
+        missing = [r.frame_id for r in seq.records if r.instance_path is None]
+        if missing:
+            raise DataError(
+                self.root / seq.split,
+                f"{len(missing)} of {len(seq)} frames have no instance image (first: {missing[0]}); "
+                "the oracle-mask track needs every one: use --track predicted",
+            )
 
     def displacements(self) -> list[dict[str, Any]]:
         """The moved objects of ``query_displaced`` (each names an object of ``objects.json``)."""

@@ -26,7 +26,7 @@ from openreloc_bench.data import io, mapfile
 from openreloc_bench.data.scene import Scene
 from openreloc_bench.errors import ConfigError, DataError
 from openreloc_bench.methods import Relocalizer, map_config
-from openreloc_bench.tracks import MASK_FREE, ORACLE_MASK, RecordedTrack
+from openreloc_bench.tracks import MASK_FREE, RecordedTrack
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 
@@ -100,8 +100,7 @@ def build_map(method: Relocalizer, scene: Scene, track: RecordedTrack, map_dir: 
     dataset's masks on the oracle-mask track only; return what it was built from (``built_from``) and
     what it cost. A failed or interrupted build leaves ``map_dir`` empty: what is there is a part of a map,
     never a map."""
-    mapping = scene.sequence("mapping")
-    mapping.load_instances = track == ORACLE_MASK
+    mapping = scene.sequence("mapping", track)
     map_dir.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     try:

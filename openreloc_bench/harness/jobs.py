@@ -40,7 +40,7 @@ from openreloc_bench.harness import cache
 from openreloc_bench.harness.isolation import QueryServer, build_map_in_child
 from openreloc_bench.harness.score import Outcome, score_split, with_difficulty
 from openreloc_bench.methods import QueryFrame, create_method, localize_safely
-from openreloc_bench.tracks import ORACLE_MASK, RecordedTrack
+from openreloc_bench.tracks import RecordedTrack
 
 log = logging.getLogger(__name__)
 
@@ -150,8 +150,7 @@ def open_queries(job: QueryJob) -> tuple[Callable[[int], Outcome], float]:
     method = create_method(job.run.method, **job.run.overrides)
     t0 = time.perf_counter()
     method.load_map(job.map_dir)
-    seq = Scene(job.scene_dir).sequence(job.split)
-    seq.load_instances = job.track == ORACLE_MASK
+    seq = Scene(job.scene_dir).sequence(job.split, job.track)
     load_s = time.perf_counter() - t0
 
     def answer(i: int) -> Outcome:

@@ -105,14 +105,13 @@ def list_jobs(cfg: EvalConfig) -> tuple[list[MapJob], list[QueryJob]]:
     for name in cfg.scenes:
         scene = Scene(cfg.data / paths.plain_name(name, "scene"))
         avail = scene.splits()
+        masked = ORACLE_MASK if cfg.track == ORACLE_MASK and any(uses_masks(r.method) for r in cfg.runs) else None
         for split in ["mapping", *cfg.splits]:
             if split not in avail:
                 raise DataError(scene.root, f"scene has no split '{split}' (available: {', '.join(avail)})")
-            # an incomplete or inconsistent scene fails here, before any work
-            sizes[name, split] = len(scene.sequence(split))
+            # an incomplete or inconsistent scene (or one without the masks the track gives) fails here
+            sizes[name, split] = len(scene.sequence(split, masked))
         scene.difficulty()  # so does a broken difficulty table (the query tables join it)
-        if cfg.track == ORACLE_MASK and any(uses_masks(run.method) for run in cfg.runs):
-            scene.check_masks(["mapping", *cfg.splits])
         scenes[name] = scene
     # the results folder (what the run creates, replaces, cleans of stray temps) holds no scene, nor is in one
     paths.check_output(cfg.out, [s.root for s in scenes.values()], "results folder")

@@ -22,7 +22,7 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
-from openreloc_bench.data import io, mapfile
+from openreloc_bench.data import io, mapfile, paths
 from openreloc_bench.data.scene import Scene
 from openreloc_bench.errors import ConfigError, DataError
 from openreloc_bench.methods import Relocalizer, map_config
@@ -40,6 +40,12 @@ def config_hash(config: dict[str, Any]) -> str:
 def map_key(method: Relocalizer, track: RecordedTrack) -> str:
     """The hash ``method``'s maps are cached under: its map config and the track whose masks they are built from."""
     return config_hash({**map_config(method), "masks": track})
+
+
+def map_folder(root: Path, name: str, method: Relocalizer, track: RecordedTrack, scene_key: str) -> Path:
+    """Where a results or cache folder ``root`` keeps ``method``'s map of a scene: ``maps/<name>/<map key>/
+    <scene key>`` (:func:`map_key`), confined to ``root/maps`` whatever a plugin names its method."""
+    return paths.confined(root / "maps" / name / map_key(method, track) / scene_key, root / "maps", "map cache")
 
 
 def dir_bytes(path: Path) -> int:

@@ -123,8 +123,7 @@ def list_jobs(cfg: EvalConfig) -> tuple[list[MapJob], list[QueryJob]]:
         map_hash = cache.map_key(method, track)
         for name, scene in scenes.items():
             spec = scene.spec_hash
-            # rebuilt (removed first) when stale: confined to the cache, whatever a plugin names its method
-            map_dir = paths.confined(cfg.out / "maps" / run.method / map_hash / name, cfg.out / "maps", "map cache")
+            map_dir = cache.map_folder(cfg.out, run.method, method, track, name)  # rebuilt (removed first) when stale
             prov = {
                 "method": run.label,
                 "variant": run.variant or run.label,

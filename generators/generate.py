@@ -77,21 +77,13 @@ def scene_info(spec: SceneSpec, layout: Layout, K: np.ndarray, counts: dict[str,
 
 
 def capture(
-    renderer: Renderer,
-    T: np.ndarray,
-    K: np.ndarray,
-    spec: SceneSpec,
-    level: float,
-    rng: np.random.Generator,
-    T_neighbour: np.ndarray | None = None,
+    renderer: Renderer, T: np.ndarray, K: np.ndarray, spec: SceneSpec, T_neighbour: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """One frame as the spec's camera records it: the render, blurred over the motion to
-    ``T_neighbour`` (mapping frames: a hand-held sweep), with the sensor's colour and depth noise."""
+    """One frame's render, its colour blurred over the motion to ``T_neighbour`` (mapping frames: a
+    hand-held sweep) when the spec's sensor blurs."""
     rgb, depth, inst = renderer.render(T, K, spec.width, spec.height)
     sensor = spec.sensor
-    if sensor.model == "ideal":
-        return rgb, depth, inst
-    if T_neighbour is not None and sensor.blur_subframes > 1:
+    if sensor.model != "ideal" and T_neighbour is not None and sensor.blur_subframes > 1:
         poses = exposure_poses(T, T_neighbour, sensor)
         middle = len(poses) // 2 if len(poses) % 2 else -1
         rgb = blend_subframes(
@@ -100,7 +92,26 @@ def capture(
                 for k, P in enumerate(poses)
             ]
         )
-    return sensor_colour(rgb, sensor, rng, level), sensor_depth(depth, rgb, K, sensor, rng, level), inst
+    return rgb, depth, inst
+
+
+def record(
+    writer: SceneWriter,
+    split: str,
+    i: int,
+    frame: tuple[np.ndarray, np.ndarray, np.ndarray],
+    T: np.ndarray,
+    K: np.ndarray,
+    spec: SceneSpec,
+    level: float,
+) -> None:
+    """Write frame ``i`` of ``split`` as the spec's camera records the render ``frame``: with the sensor's
+    colour and depth noise, seeded by (scene seed, split, frame) so that a resumed run redoes it exactly."""
+    rgb, depth, inst = frame
+    if spec.sensor.model != "ideal":
+        rng = np.random.default_rng([spec.seed, SENSOR_STREAM, SPLITS.index(split), i])
+        rgb, depth = sensor_colour(rgb, spec.sensor, rng, level), sensor_depth(depth, rgb, K, spec.sensor, rng, level)
+    writer.write_frame(split, i, rgb, depth, inst, T)
 
 
 def render_split(
@@ -116,10 +127,9 @@ def render_split(
 ) -> int:
     """Render and write one split; returns the number of frames reused from a previous run.
 
-    Each frame's sensor noise has its own seed (scene seed, split, frame), so a resumed run redoes a frame
-    exactly. PNG encoding and writing of frame i overlap the rendering of frame i+1 (one writer thread; cv2
-    releases the GIL). Each frame still ends with its pose file, so an interrupted run loses at most the
-    frame in flight, which resume redoes.
+    The sensor's noise, PNG encoding and writing of frame i (:func:`record`) overlap the rendering of frame
+    i+1 (one writer thread; numpy and cv2 release the GIL). Each frame still ends with its pose file, so an
+    interrupted run loses at most the frame in flight, which resume redoes.
     """
     writer.write_intrinsics(split, K)
     reused = 0
@@ -130,12 +140,10 @@ def render_split(
             if resume and writer.has_frame(split, i):
                 reused += 1
             else:
-                rng = np.random.default_rng([spec.seed, SENSOR_STREAM, SPLITS.index(split), i])
-                neighbour = _sweep_neighbour(poses, i) if blurred else None
-                rgb, depth, inst = capture(renderer, T, K, spec, level, rng, neighbour)
+                frame = capture(renderer, T, K, spec, _sweep_neighbour(poses, i) if blurred else None)
                 if pending is not None:
                     pending.result()
-                pending = pool.submit(writer.write_frame, split, i, rgb, depth, inst, T)
+                pending = pool.submit(record, writer, split, i, frame, T, K, spec, level)
             if bar is not None:
                 bar.update(1)
         if pending is not None:

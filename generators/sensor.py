@@ -15,9 +15,10 @@ Depth follows the published noise models of these cameras, in this order:
    working range.
 
 Colour is a linear-light camera: the render is decoded from sRGB, darkened towards the corners
-(vignetting), amplified by the camera's gain, given photon shot noise (Poisson, as a Gaussian) and read
-noise that both grow with the gain, clipped, re-encoded to sRGB and JPEG-compressed. The camera raises its
-gain as the light falls (:func:`colour_gain`), so the benchmark's dark splits are noisier, not only darker.
+(vignetting), collected as electrons with photon shot noise (Poisson, as a Gaussian) and read noise,
+amplified by the camera's gain with its noise, clipped, re-encoded to sRGB and JPEG-compressed. The camera
+raises its gain as the light falls (:func:`colour_gain`), so the benchmark's dark splits are noisier, not
+only darker.
 Motion blur averages sub-frame renders in linear light (:func:`blend_subframes`).
 
 Every random draw comes from the caller's ``numpy.random.Generator``: the same seed gives the same frames.
@@ -360,20 +361,21 @@ def _projector_shadow(z: np.ndarray, fb_render: float) -> np.ndarray:
 def colour_gain(light_level: float, spec: SensorSpec) -> float:
     """The analogue gain the camera uses at ``light_level`` (1 = mapping light) without auto-exposure.
 
-    It compensates the lost light, 1 / light_level, between 1 (base gain, at or above mapping light) and
-    ``max_gain``: a dark split is recorded with fewer photons amplified more, so it is noisier, not only
-    darker."""
+    It makes up half the lost light in stops, 1 / sqrt(light_level), between 1 (base gain, at or above
+    mapping light) and ``max_gain``: a dark split is recorded brighter than it was rendered yet darker
+    than the mapping frames, its few photons' noise amplified with them."""
     _check_level(light_level)
-    return float(min(spec.colour.max_gain, max(1.0, 1.0 / light_level)))
+    return float(min(spec.colour.max_gain, max(1.0, light_level**-0.5)))
 
 
 def sensor_colour(rgb: np.ndarray, spec: SensorSpec, rng: np.random.Generator, light_level: float = 1.0) -> np.ndarray:
     """The colour image (uint8 RGB) the camera records of the render ``rgb``, lit at ``light_level`` times the
-    mapping light (the render is already that much darker).
+    mapping light (the render is already that much darker: what the sensor collects at base gain).
 
-    In linear light: vignetting, then the gain (auto-exposure's, or :func:`colour_gain`'s without it, which
-    leaves the brightness as rendered), shot noise with variance signal x gain / full_well and read noise
-    gain x read_sigma / full_well, clipping, sRGB and JPEG."""
+    In linear light: vignetting; the render's light as electrons (full scale = ``full_well``); photon shot
+    noise (Poisson, as a Gaussian) and read noise; then the gain (auto-exposure's, or :func:`colour_gain`'s),
+    which amplifies signal and noise alike (a gain below 1 is a shorter exposure: fewer electrons);
+    clipping, sRGB and JPEG."""
     _check_rgb(rgb)
     _check_level(light_level)
     if spec.model == "ideal":
@@ -385,17 +387,18 @@ def sensor_colour(rgb: np.ndarray, spec: SensorSpec, rng: np.random.Generator, l
         lin *= _vignette(h, w, c.vignetting)[..., None]
     if c.auto_exposure:
         mean = float(np.dot(cv2.mean(lin)[:3], _LUMA))
-        exposure = min(c.max_gain, c.target_mean / max(mean, 1e-6))
-        lin *= np.float32(exposure)
-        gain = max(1.0, exposure)  # below 1 the camera shortens the exposure instead
+        gain = min(c.max_gain, c.target_mean / max(mean, 1e-6))
     else:
         gain = colour_gain(light_level, spec)
-    noise = lin * np.float32(gain / c.full_well)
-    noise += np.float32((gain * c.read_sigma / c.full_well) ** 2)
+    exposure = min(gain, 1.0)
+    electrons = lin
+    electrons *= np.float32(c.full_well * exposure)
+    noise = electrons + np.float32(c.read_sigma**2)
     np.sqrt(noise, out=noise)
     noise *= rng.standard_normal(lin.shape, dtype=np.float32)
-    lin += noise
-    out = _encode(lin)
+    electrons += noise
+    electrons *= np.float32(gain / exposure / c.full_well)
+    out = _encode(electrons)
     if c.jpeg_quality > 0:
         ok, buf = cv2.imencode(".jpg", cv2.cvtColor(out, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_JPEG_QUALITY, c.jpeg_quality])
         if not ok:

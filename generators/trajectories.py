@@ -348,7 +348,7 @@ def sample_queries(
         raise RuntimeError("no free space for query poses")
     weights = np.array([len(c) for c in cells], float)
     boxes = np.array([i.aabb for i in layout.instances if not i.structural]).reshape(-1, 2, 3)
-    count_visible = visibility_check(layout, spec, renderer)
+    visible = visibility_check(layout, spec, renderer)
     centres = mapping[:, :3, 3]
     poses, infos = [], []
     tries = 0
@@ -375,7 +375,7 @@ def sample_queries(
         min_ang = float(ang[within].min()) if within.any() else float("inf")
         if min_ang < spec.query_min_angle:
             continue
-        n_vis = len(count_visible(T))
+        n_vis = len(visible(T))
         if n_vis < spec.query_min_objects:
             continue
         poses.append(T)
@@ -400,7 +400,7 @@ def sample_near_queries(
     gives one before any gives two, so queries spread along the path. Deterministic in the seed."""
     rng = np.random.default_rng([spec.seed, 19])
     step = np.r_[np.linalg.norm(np.diff(path[:, :3, 3], axis=0), axis=1), np.inf]
-    count_visible = visibility_check(layout, spec, renderer)
+    visible = visibility_check(layout, spec, renderer)
     chosen: set[int] = set()
     for _ in range(NEAR_QUERY_ROUNDS):  # each round takes at most one more pose from every gap
         for k in rng.permutation(len(frames) - 1):
@@ -409,7 +409,7 @@ def sample_near_queries(
                 continue
             window = np.arange(max(a + 1, int(np.ceil(a + 0.3 * (b - a)))), min(b, int(a + 0.7 * (b - a)) + 1))
             for j in (int(j) for j in rng.permutation(window) if int(j) not in chosen):
-                if len(count_visible(path[j])) >= spec.query_min_objects:
+                if len(visible(path[j])) >= spec.query_min_objects:
                     chosen.add(j)
                     break
             if len(chosen) == spec.n_query:

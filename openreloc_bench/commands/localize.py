@@ -103,7 +103,6 @@ def run(args: argparse.Namespace) -> int:
     for flag, out in (("--out", args.out), ("--diagnostics", args.diagnostics)):
         if out is not None:
             paths.check_output_file(out, [args.scene, args.map], flag)
-            paths.check_writable_file(out, flag)
     if args.diagnostics is not None and args.diagnostics.resolve() == args.out.resolve():
         raise ConfigError(f"--diagnostics and --out are the same file {args.out}; give two paths")
     method = create_method(args.method, **method_overrides(args))

@@ -60,13 +60,16 @@ def confined(path: Path, root: Path, what: str) -> Path:
 
 
 def check_output_file(output: Path, inputs: Iterable[Path], what: str, suffix: str = "") -> Path:
-    """:func:`check_output` for a file to write: also refused when it is an existing directory or,
-    with ``suffix`` (``".png"``), when its name ends otherwise (the writer picks its format by it)."""
+    """:func:`check_output` for a file to write: also refused when it is an existing directory, when it
+    cannot be written (:func:`check_writable_file`) or, with ``suffix`` (``".png"``), when its name ends
+    otherwise (the writer picks its format by it)."""
     if Path(output).is_dir():
         raise ConfigError(f"{what} {output} is a directory; give a file path")
     if suffix and Path(output).suffix.lower() != suffix:
         raise ConfigError(f"{what} {output} must end in {suffix}")
-    return check_output(output, inputs, what)
+    out = check_output(output, inputs, what)
+    check_writable_file(output, what)
+    return out
 
 
 def check_writable_file(output: Path, what: str) -> Path:

@@ -48,7 +48,7 @@ class InLoopRelocalizer:
         self.scene = scene
         self.track = recorded_track(self.method, track)
         """The masks the map is built from and the queries carry: ``mask-free`` for a method that reads none."""
-        self.map_dir = cache.map_folder(cache_root, method, self.method, self.track, scene_key(scene))
+        self.map_dir = cache.map_folder(cache_root, method, cache.map_key(self.method, self.track), scene_key(scene))
         self._cache_root = cache_root
         self._loaded = False
 

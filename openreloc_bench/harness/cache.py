@@ -42,10 +42,11 @@ def map_key(method: Relocalizer, track: RecordedTrack) -> str:
     return config_hash({**map_config(method), "masks": track})
 
 
-def map_folder(root: Path, name: str, method: Relocalizer, track: RecordedTrack, scene_key: str) -> Path:
-    """Where a results or cache folder ``root`` keeps ``method``'s map of a scene: ``maps/<name>/<map key>/
-    <scene key>`` (:func:`map_key`), confined to ``root/maps`` whatever a plugin names its method."""
-    return paths.confined(root / "maps" / name / map_key(method, track) / scene_key, root / "maps", "map cache")
+def map_folder(root: Path, name: str, key: str, scene_key: str) -> Path:
+    """Where a results or cache folder ``root`` keeps the map of method ``name`` with map key ``key``
+    (:func:`map_key`) of a scene: ``maps/<name>/<key>/<scene key>``, confined to ``root/maps`` whatever a
+    plugin names its method."""
+    return paths.confined(root / "maps" / name / key / scene_key, root / "maps", "map cache")
 
 
 def dir_bytes(path: Path) -> int:

@@ -28,7 +28,7 @@ from openreloc_bench.bars import tqdm
 from openreloc_bench.data.scene import Scene
 from openreloc_bench.data.types import SceneSequence
 from openreloc_bench.errors import ConfigError
-from openreloc_bench.harness.cache import cached_map, map_folder
+from openreloc_bench.harness.cache import cached_map, map_folder, map_key
 from openreloc_bench.harness.metrics import summarize
 from openreloc_bench.harness.pose_stages import map_summary, pool_stages, query_stages, summarize_stages
 from openreloc_bench.harness.query_picture import draw_query
@@ -194,7 +194,7 @@ def _map(scene: Scene, overrides: dict[str, Any], masks: str, work_dir: Path) ->
     """The method and its map of ``scene`` from the dataset's masks or the segmenter's, cached as eval's."""
     method = create_method("openreloc", **overrides)
     track = ORACLE_MASK if masks == "dataset" else PREDICTED
-    map_dir = map_folder(work_dir, method.name, method, track, scene.name)
+    map_dir = map_folder(work_dir, method.name, map_key(method, track), scene.name)
     cached_map(method, scene, track, map_dir, {"scene": scene.name})
     return method, map_dir, ObjectMap.load(map_dir).stats
 

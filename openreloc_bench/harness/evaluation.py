@@ -15,6 +15,7 @@ import pandas as pd
 
 from openreloc_bench.data import paths, runs
 from openreloc_bench.harness import runner, tables
+from openreloc_bench.harness.metrics import THRESHOLDS_M
 from openreloc_bench.harness.suites import ensure_suite_scenes, suite_scene_names
 from openreloc_bench.methods import uses_masks
 
@@ -50,7 +51,7 @@ def failure_lines(queries: pd.DataFrame, per_query: Path) -> list[str]:
             lines.append(
                 f"failed: {method} ({track}): {len(failed)} of {len(q)} queries: {top} (every query: {per_query})"
             )
-        if len(q) and not (q["t_err_m"] < 0.5).any():
+        if len(q) and not (q["t_err_m"] < THRESHOLDS_M["50cm"]).any():
             lines.append(
                 f"warning: {method} ({track}) placed none of its {len(q)} queries within 50 cm; check that it "
                 "returns camera-to-world poses in the map's frame (OpenCV axes)"

@@ -102,10 +102,10 @@ def list_jobs(cfg: EvalConfig) -> tuple[list[MapJob], list[QueryJob]]:
     plugin_specs = plugins.load_plugins(cfg.plugins)  # as the workers import them
     commit = cache.git_commit()
     scenes, sizes = {}, {}
+    masked = ORACLE_MASK if cfg.track == ORACLE_MASK and any(uses_masks(r.method) for r in cfg.runs) else None
     for name in cfg.scenes:
         scene = Scene(cfg.data / paths.plain_name(name, "scene"))
         avail = scene.splits()
-        masked = ORACLE_MASK if cfg.track == ORACLE_MASK and any(uses_masks(r.method) for r in cfg.runs) else None
         for split in ["mapping", *cfg.splits]:
             if split not in avail:
                 raise DataError(scene.root, f"scene has no split '{split}' (available: {', '.join(avail)})")
@@ -123,7 +123,7 @@ def list_jobs(cfg: EvalConfig) -> tuple[list[MapJob], list[QueryJob]]:
         map_hash = cache.map_key(method, track)
         for name, scene in scenes.items():
             spec = scene.spec_hash
-            map_dir = cache.map_folder(cfg.out, run.method, method, track, name)  # rebuilt (removed first) when stale
+            map_dir = cache.map_folder(cfg.out, run.method, map_hash, name)  # rebuilt (removed first) when stale
             prov = {
                 "method": run.label,
                 "variant": run.variant or run.label,

@@ -65,7 +65,7 @@ def run(args: argparse.Namespace) -> int:
     if args.seed < 0:
         raise ConfigError(f"--seed must be at least 0 (gymnasium seeds are non-negative), got {args.seed}")
     if args.out:
-        paths.check_writable_file(args.out, "--out")
+        paths.check_output_file(args.out, [], "--out")  # not inside a scene or map
     options = config.parse_overrides(args.overrides)
     for key in ("scene", "suite", "method"):
         if getattr(args, key) is not None:

@@ -15,6 +15,7 @@ import argparse
 import math
 from pathlib import Path
 
+from openreloc_bench.data import paths
 from openreloc_bench.errors import ConfigError
 
 NAME = "train-encoder"
@@ -92,6 +93,7 @@ def run(args: argparse.Namespace) -> int:
     from openreloc_bench.vision.training import TrainConfig, training_device
 
     _check_numbers(args)
+    paths.check_output(args.out, [], "--out", fills=True)  # neither in nor a scene or map
     training_device(args.device)  # refuse a missing GPU before generating scenes
     train = TrainConfig(
         seed=args.seed, epochs=args.epochs, threads=args.threads, instance_weight=args.instance_weight,

@@ -37,17 +37,19 @@ def overlaps(a: Path, b: Path) -> bool:
     return a == b or a.is_relative_to(b) or b.is_relative_to(a)
 
 
-def check_output(output: Path, inputs: Iterable[Path], what: str) -> Path:
+def check_output(output: Path, inputs: Iterable[Path], what: str, fills: bool = False) -> Path:
     """Resolve ``output`` and refuse it when it equals, contains or lies inside any of ``inputs``, or
-    lies inside any scene or map (:data:`OWNED_FOLDERS`)."""
+    lies inside any scene or map (:data:`OWNED_FOLDERS`); with ``fills`` (a folder the command writes
+    its files into, not one it replaces whole), also when it is one."""
     out = Path(output).resolve()
     for src in inputs:
         if overlaps(out, src):
             raise ConfigError(f"{what} {output} overlaps the input {src}: choose a path outside it")
-    for folder in out.parents:
+    for folder in (out, *out.parents) if fills else out.parents:
         for marker, kind in OWNED_FOLDERS.items():
             if (folder / marker).is_file():
-                raise ConfigError(f"{what} {output} lies inside the {kind} {folder}: choose a path outside it")
+                where = "is" if folder == out else "lies inside"
+                raise ConfigError(f"{what} {output} {where} the {kind} {folder}: choose a path outside it")
     return out
 
 

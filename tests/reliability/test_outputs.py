@@ -117,12 +117,23 @@ def test_no_output_lands_inside_another_scene_or_a_map(world: World, capsys) -> 
     other = world.data / "sB"
     before = {p: checksums(p) for p in (world.data, world.map_dir)}
     for argv, where in (
-        (["preview", str(world.scene), "--out", str(other / "query" / "color" / "000000.png")], "scene"),
-        (["show-map", str(world.map_dir), "--out", str(other / "map.png")], "scene"),
-        (["preview", str(world.scene), "--out", str(world.map_dir / "sub" / "p.png")], "map"),
+        (
+            ["preview", str(world.scene), "--out", str(other / "query" / "color" / "000000.png")],
+            "lies inside the scene",
+        ),
+        (["show-map", str(world.map_dir), "--out", str(other / "map.png")], "lies inside the scene"),
+        (["preview", str(world.scene), "--out", str(world.map_dir / "sub" / "p.png")], "lies inside the map"),
+        (
+            ["agent", "ActiveReloc-v0", "--scene", str(world.scene), "--out", str(other / "ep.csv")],
+            "lies inside the scene",
+        ),
+        (["agent", "ActiveReloc-v0", "--out", str(world.map_dir / "ep.csv")], "lies inside the map"),
+        (["train-encoder", "--out", str(other / "w")], "lies inside the scene"),
+        (["train-encoder", "--out", str(world.map_dir)], "is the map"),
+        (["train-encoder", "--out", str(other)], "is the scene"),
     ):
         code, _, err = run(argv, capsys)
-        one_line_error(code, err, argv[0], f"lies inside the {where}")
+        one_line_error(code, err, argv[0], where)
     assert {p: checksums(p) for p in before} == before
 
 

@@ -15,6 +15,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from openreloc_bench.data import io, paths
+from openreloc_bench.errors import ConfigError
 from openreloc_bench.harness.leaderboard.pages import to_html, to_markdown
 from openreloc_bench.harness.leaderboard.plots import (
     board_scene,
@@ -47,6 +48,7 @@ def write_leaderboard(results: list[Path], out: Path, data: Path | None = None, 
     q = recorded_tracks(pool_seeds(load_queries(results)))  # pooled first: seeded runs carry the method's name
     for r in results:
         paths.check_output(out, [r], "--out")
+    _check_not_foreign_pages(out)
     scenes, suite = build_tables(q, load_maps(results))
     # The csv keeps every row; pages and plots compare methods, and a method's ablation variants, parts of
     # it, have their own table (``ablations_<track>.md``, written by ``eval --ablations``).
@@ -101,6 +103,19 @@ def write_leaderboard(results: list[Path], out: Path, data: Path | None = None, 
         *plots,
         *difficulty_plots,
     ]
+
+
+BOARD_PAGES = ("index.html", "leaderboard.md")
+
+
+def _check_not_foreign_pages(out: Path) -> None:
+    """Refuse to write a board over pages it did not write: a folder holding ``index.html`` or
+    ``leaderboard.md`` but no ``leaderboard.csv`` (which every board writes) holds someone else's site."""
+    if (out / "leaderboard.csv").is_file():
+        return
+    for page in BOARD_PAGES:
+        if (out / page).exists():
+            raise ConfigError(f"--out {out} holds a {page} no board wrote: choose another folder")
 
 
 def copy_ablation_tables(results: list[Path], out: Path) -> list[Path]:

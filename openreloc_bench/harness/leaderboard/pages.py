@@ -13,6 +13,7 @@ from openreloc_bench.harness.leaderboard.rows import (
     BOARD_COLUMNS,
     ROBUSTNESS_TITLE,
     TRACK_TITLES,
+    board_cell,
     format_cell,
     provenance,
     shown_columns,
@@ -72,7 +73,8 @@ def to_markdown(
         "",
         f"**{verdict_lead()}:** {verdict(b)}",
         "",
-        "Recall = share of all queries (failures count); MTE/MRE = mean error of the queries within the threshold.",
+        "Recall = share of all queries (failures count), with its 95% interval (bootstrap over scenes, then queries); "
+        "MTE/MRE = mean error of the queries within the threshold.",
         "",
         provenance(b)
         + (f" The data: [its dataset card]({card})." if card else "")
@@ -83,7 +85,7 @@ def to_markdown(
             "",
             f"## {title}",
             "",
-            *md_table(head, [[format_cell(c, r[c]) for c in shown] for _, r in t.iterrows()]),
+            *md_table(head, [[board_cell(r, c) for c in shown] for _, r in t.iterrows()]),
         ]
     if drops is not None and not drops.empty:
         lines += ["", f"## {ROBUSTNESS_TITLE}", "", *md_table(list(drops.columns), drops.values.tolist())]
@@ -145,7 +147,7 @@ def to_html(
     shown = shown_columns(b)
     head = [BOARD_COLUMNS[c] for c in shown]
     tables = "".join(
-        _html_table(title, head, [[format_cell(c, r[c]) for c in shown] for _, r in t.iterrows()])
+        _html_table(title, head, [[board_cell(r, c) for c in shown] for _, r in t.iterrows()])
         for title, t in _by_track(b)
     )
     if drops is not None and not drops.empty:
@@ -179,8 +181,8 @@ img.wide {{ max-width: 98%; float: none; }} .clear {{ clear: both; }}
 </style></head><body>
 <h1>{html.escape(_title(versions))}</h1>
 <p class="verdict"><strong>{html.escape(verdict_lead())}:</strong> {html.escape(verdict(b))}</p>
-<p>Recall = share of all queries (failed queries count). MTE/MRE = mean error of the queries within the
-threshold. Click a column header to sort. {html.escape(provenance(b))}{card_link}</p>
+<p>Recall = share of all queries (failed queries count), with its 95% interval (bootstrap over scenes, then
+queries). MTE/MRE = mean error of the queries within the threshold. Click a column header to sort. {html.escape(provenance(b))}{card_link}</p>
 {tables}{imgs}
 <script>{_SORT_JS}</script>
 </body></html>

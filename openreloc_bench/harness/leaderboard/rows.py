@@ -22,8 +22,8 @@ from openreloc_bench.tracks import MASK_FREE
 
 BOARD_COLUMNS = {
     "method": "Method", "track": "Track", "split": "Split", "n_scenes": "Scenes", "n_seeds": "Seeds", "n_queries": "Queries",
-    "recall_100cm": "R@100cm [%]", "recall_50cm": "R@50cm [%]", "recall_50cm_ci": "R@50cm 95% CI",
-    "recall_25cm": "R@25cm [%]", "recall_25cm_ci": "R@25cm 95% CI", "recall_25cm_5deg": "R@25cm,5° [%]",
+    "recall_100cm": "R@100cm [%]", "recall_50cm": "R@50cm [%]", "recall_25cm": "R@25cm [%]",
+    "recall_25cm_5deg": "R@25cm,5° [%]",
     "recall_10cm_10deg": "R@10cm,10° [%]", "recall_5cm_5deg": "R@5cm,5° [%]", "recall_vcre": "VCRE<90px [%]",
     "auc_25cm_5deg": "AUC@25cm,5° [%]", "mte_50cm_m": "MTE@50 [m]", "mre_50cm_deg": "MRE@50 [°]",
     "mte_25cm_m": "MTE@25 [m]", "mre_25cm_deg": "MRE@25 [°]", "median_te_m": "Median TE [m]",
@@ -108,31 +108,32 @@ def format_cell(col: str, v: object) -> str:
     return str(v)
 
 
-INTERVAL_RECALLS = ("recall_50cm", "recall_25cm")
-"""The recalls the board prints with their 95% intervals (``<recall>_ci``; every recall's interval is in
-``leaderboard.csv``)."""
-
-
 def board(suite: pd.DataFrame) -> pd.DataFrame:
     """The leaderboard rows: the predicted track first, then the oracle-mask track; best Recall@25cm first
-    within each (track, split). The intervals of :data:`INTERVAL_RECALLS` ride along (``_lo`` / ``_hi``,
-    for the verdict; not shown) and are printed beside their recall (``_ci``)."""
+    within each (track, split). Every recall's 95% interval rides along (``_lo`` / ``_hi``), which the
+    verdict reads and :func:`board_cell` prints beside its recall."""
     b = suite.assign(_rank=suite["track"].map(track_rank))
     b = b.sort_values(["_rank", "split", "recall_25cm", "recall_50cm"], ascending=[True, True, False, False])
-    for k in INTERVAL_RECALLS:
-        if f"{k}_lo" in b:
-            b[f"{k}_ci"] = [
-                "-" if pd.isna(lo) else f"[{lo:.1f}, {hi:.1f}]" for lo, hi in zip(b[f"{k}_lo"], b[f"{k}_hi"])
-            ]
-    hidden = [f"{k}_{end}" for k in INTERVAL_RECALLS for end in ("lo", "hi") if f"{k}_{end}" in b]
-    b = b[[c for c in BOARD_COLUMNS if c in b] + hidden].copy()
+    bounds = [
+        f"{k}_{end}" for k in BOARD_COLUMNS if k.startswith("recall") for end in ("lo", "hi") if f"{k}_{end}" in b
+    ]
+    b = b[[c for c in BOARD_COLUMNS if c in b] + bounds].copy()
     b[["latency_median_s", "latency_p90_s"]] *= 1000.0  # shown in ms
     b["git_commit"] = b["git_commit"].astype(str).str.slice(0, 12)
     return b
 
 
+def board_cell(row: pd.Series, col: str) -> str:
+    """``row``'s value of ``col`` as a page prints it: :func:`format_cell`, and a recall with its 95%
+    interval where the row has one (``66.7 [61.2, 72.1]``)."""
+    cell = format_cell(col, row[col])
+    lo, hi = row.get(f"{col}_lo", math.nan), row.get(f"{col}_hi", math.nan)
+    return cell if pd.isna(lo) or pd.isna(hi) else f"{cell} [{lo:.1f}, {hi:.1f}]"
+
+
 def shown_columns(b: pd.DataFrame) -> list[str]:
-    """The columns of :func:`board` rows a page prints (not the intervals' bounds the verdict reads)."""
+    """The columns of :func:`board` rows a page prints (the intervals' bounds are printed inside their
+    recall's cell)."""
     return [c for c in b.columns if c in BOARD_COLUMNS]
 
 

@@ -6,8 +6,10 @@ import html
 from pathlib import Path
 
 import pandas as pd
+import pytest
 
 from openreloc_bench.data.runs import backfill_difficulty
+from openreloc_bench.errors import ConfigError
 from openreloc_bench.harness.leaderboard import write_leaderboard
 from openreloc_bench.harness.leaderboard.plots import plot_recall_vs_difficulty
 from openreloc_bench.harness.leaderboard.rows import data_versions
@@ -65,10 +67,27 @@ def test_boards_print_recalls_with_their_intervals_and_the_fields_thresholds(tmp
     out = tmp_path / "board"
     write_leaderboard([results_dir(tmp_path / "r", "m")], out)
     md = (out / "leaderboard.md").read_text()
-    for column in ("R@50cm 95% CI", "R@25cm 95% CI", "R@5cm,5° [%]", "R@10cm,10° [%]", "VCRE<90px [%]"):
-        assert column in md and html.escape(column) in (out / "index.html").read_text()
-    assert "recall_50cm_lo" not in md  # the bounds the verdict reads are not a column of their own
+    page = (out / "index.html").read_text()
+    for column in ("R@50cm [%]", "R@5cm,5° [%]", "R@10cm,10° [%]", "VCRE<90px [%]"):
+        assert column in md and html.escape(column) in page
+    assert "recall_50cm_lo" not in md  # the bounds are printed in their recall's cell, not as columns
     suite = pd.read_csv(out / "leaderboard.csv").set_index("split")
-    lo, r50, hi = suite.loc["query", ["recall_50cm_lo", "recall_50cm", "recall_50cm_hi"]]
-    assert lo <= r50 <= hi and lo < hi  # 3 of 4 queries within 50 cm: far from certain
-    assert f"[{lo:.1f}, {hi:.1f}]" in md
+    for recall in ("recall_50cm", "recall_25cm", "recall_5cm_5deg", "recall_10cm_10deg", "recall_25cm_5deg"):
+        lo, value, hi = suite.loc["query", [f"{recall}_lo", recall, f"{recall}_hi"]]
+        assert lo <= value <= hi
+        assert f"{value:.1f} [{lo:.1f}, {hi:.1f}]" in md and f"{value:.1f} [{lo:.1f}, {hi:.1f}]" in page
+    lo, hi = suite.loc["query", ["recall_50cm_lo", "recall_50cm_hi"]]
+    assert lo < hi  # 3 of 4 queries within 50 cm: far from certain
+
+
+def test_a_board_is_not_written_over_pages_no_board_wrote(tmp_path: Path) -> None:
+    site = tmp_path / "site"
+    site.mkdir()
+    (site / "index.html").write_text("<p>my lab</p>")
+    results = results_dir(tmp_path / "r", "m")
+    with pytest.raises(ConfigError, match="holds a index.html no board wrote"):
+        write_leaderboard([results], site)
+    assert sorted(site.iterdir()) == [site / "index.html"] and (site / "index.html").read_text() == "<p>my lab</p>"
+    board = tmp_path / "board"
+    write_leaderboard([results], board)
+    assert write_leaderboard([results], board)  # a board's own folder is rewritten

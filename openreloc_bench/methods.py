@@ -113,9 +113,10 @@ class Answer:
 
 
 def localize_safely(method: Relocalizer, query: QueryFrame) -> Answer:
-    """Ask ``method`` about ``query``, timing only its own call. Never raises: an exception, no answer, a
-    :class:`Failure`, another return type and a pose that is not a finite rigid 4x4 transform are each a
-    failure with its reason, so that a bug in a method fails one query, never a run or an episode."""
+    """Ask ``method`` about ``query``, timing only its own call. Never raises: an exception or a
+    ``sys.exit``, no answer, a :class:`Failure`, another return type and a pose that is not a finite
+    rigid 4x4 transform are each a failure with its reason, so that a bug in a method fails one query,
+    never a run or an episode."""
     t0 = time.perf_counter()
     try:
         res = method.localize(query)
@@ -123,6 +124,8 @@ def localize_safely(method: Relocalizer, query: QueryFrame) -> Answer:
         seconds = time.perf_counter() - t0
         log.debug("query %s raised", query.name, exc_info=True)
         return Answer(query.name, None, seconds, f"raised {type(e).__name__}: {e}"[:300])
+    except SystemExit as e:  # sys.exit in a method would end the run as if it had finished
+        return Answer(query.name, None, time.perf_counter() - t0, f"called sys.exit({e.code})"[:300])
     seconds = time.perf_counter() - t0
     if res is None:
         return Answer(query.name, None, seconds, "no estimate")

@@ -84,7 +84,7 @@ class Answering:
         self.answer = answer
 
     def localize(self, query: QueryFrame) -> Any:
-        if isinstance(self.answer, Exception):
+        if isinstance(self.answer, BaseException):
             raise self.answer
         return self.answer
 
@@ -102,6 +102,7 @@ NAN_POSE[0, 3] = np.nan
     [
         (RuntimeError("boom"), "raised RuntimeError: boom"),
         (ValueError("x" * 400), "raised ValueError: " + "x" * 281),  # cut at 300 characters
+        (SystemExit(0), "called sys.exit(0)"),  # a plugin's exit fails its query, not the run with exit 0
         (None, "no estimate"),
         (Failure("too few objects", {"matches": [1]}), "too few objects"),
         (Failure(""), "failure"),

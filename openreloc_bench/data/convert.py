@@ -249,6 +249,10 @@ def read_aggregation_labels(path: Path) -> dict[int, str]:
     for g in groups:
         if not (isinstance(g, dict) and isinstance(g.get("objectId"), int) and isinstance(g.get("label"), str)):
             raise DataError(path, "every segGroups entry needs an integer 'objectId' and a text 'label'")
+        if g["objectId"] < 0:
+            raise DataError(path, f"objectId {g['objectId']} is negative (ScanNet's object ids start at 0)")
+        if g["objectId"] + 1 in labels:
+            raise DataError(path, f"objectId {g['objectId']} is listed twice")
         labels[g["objectId"] + 1] = g["label"]
     return labels
 

@@ -23,7 +23,9 @@ TUM_DEFAULT_K = geometry.intrinsics(525.0, 525.0, 319.5, 239.5)
 
 
 def _read_list(path: Path) -> tuple[np.ndarray, list[str]]:
-    stamps, files = [], []
+    """Timestamps and files of ``rgb.txt`` or ``depth.txt``; a timestamp listed twice is refused (it would
+    shift every later frame's place in a stride split)."""
+    stamps, files, seen = [], [], {}
     for lineno, parts in io.data_lines(path):
         try:
             stamps.append(float(parts[0]))
@@ -31,6 +33,8 @@ def _read_list(path: Path) -> tuple[np.ndarray, list[str]]:
             raise DataError(path, f"line {lineno}: expected 'timestamp filename'") from None
         if len(parts) != 2:
             raise DataError(path, f"line {lineno}: expected 'timestamp filename'")
+        if (first := seen.setdefault(stamps[-1], lineno)) != lineno:
+            raise DataError(path, f"line {lineno}: timestamp {parts[0]} is listed twice (first on line {first})")
         files.append(parts[1])
     return np.array(stamps), files
 

@@ -158,11 +158,20 @@ def test_import_refuses_a_non_empty_output_and_bad_splits(tmp_path: Path) -> Non
         convert.import_scannet(src, tmp_path / "o2", stride=20, offset=15)
 
 
-def test_malformed_aggregation_is_named(tmp_path: Path) -> None:
+@pytest.mark.parametrize(
+    ("groups", "match"),
+    [
+        ([{"label": "chair"}], "every segGroups entry"),
+        ([{"objectId": -1, "label": "chair"}], "objectId -1 is negative"),
+        ([{"objectId": 2, "label": "chair"}, {"objectId": 2, "label": "desk"}], "objectId 2 is listed twice"),
+    ],
+)
+def test_malformed_aggregation_is_named(tmp_path: Path, groups: list, match: str) -> None:
     src = write_sens_export(tmp_path / "scene0004_00", n=12, bad_pose=None)
-    (src / "scene0004_00.aggregation.json").write_text(json.dumps({"segGroups": [{"label": "chair"}]}))
-    with pytest.raises(DataError, match="aggregation.json: every segGroups entry"):
+    (src / "scene0004_00.aggregation.json").write_text(json.dumps({"segGroups": groups}))
+    with pytest.raises(DataError, match=f"aggregation.json: {match}"):
         convert.import_scannet(src, tmp_path / "out")
+    assert not (tmp_path / "out").exists()
 
 
 def test_7scenes_sequence_is_split_by_the_stride_protocol(tmp_path: Path) -> None:

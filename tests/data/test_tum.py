@@ -45,3 +45,11 @@ def test_malformed_groundtruth(tmp_path: Path):
     (root / "groundtruth.txt").write_text("1305031102.0 0 0 0 0 0 0\n")
     with pytest.raises(DataError, match="groundtruth.txt: line 1"):
         read_tum(root)
+
+
+def test_a_timestamp_listed_twice_is_refused(tmp_path: Path):
+    root = write_tum_sequence(tmp_path / "fr1")
+    lines = (root / "rgb.txt").read_text().splitlines()
+    (root / "rgb.txt").write_text("\n".join([*lines[:3], lines[2], *lines[3:]]) + "\n")
+    with pytest.raises(DataError, match="rgb.txt: line 4: timestamp .* is listed twice \\(first on line 3\\)"):
+        read_tum(root)

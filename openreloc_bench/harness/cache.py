@@ -14,6 +14,7 @@ either, so ``localize`` and ``view`` refuse every map of another scene.
 from __future__ import annotations
 
 import hashlib
+import inspect
 import json
 import shutil
 import subprocess
@@ -38,8 +39,24 @@ def config_hash(config: dict[str, Any]) -> str:
 
 
 def map_key(method: Relocalizer, track: RecordedTrack) -> str:
-    """The hash ``method``'s maps are cached under: its map config and the track whose masks they are built from."""
-    return config_hash({**map_config(method), "masks": track})
+    """The hash ``method``'s maps are cached under: its map config, the track whose masks they are built
+    from and, for a method from outside this package, its code (:func:`foreign_code`)."""
+    code = foreign_code(method)
+    return config_hash({**map_config(method), "masks": track, **({"code": code} if code else {})})
+
+
+def foreign_code(method: Relocalizer) -> str | None:
+    """The sha256 of the file that defines ``method``'s class when that is not this package's (a
+    ``--plugin`` file, another package's module), so that editing a plugin's ``build_map`` rebuilds its
+    maps instead of scoring the old code's; None for this package's methods, whose code version every
+    result records (:func:`git_commit`)."""
+    try:
+        source = Path(inspect.getfile(type(method))).resolve()
+    except (TypeError, OSError):  # a class without a file (built in a notebook or by exec)
+        return None
+    if any(source.is_relative_to(REPO_ROOT / p) for p in CODE_PATHS) or not source.is_file():
+        return None
+    return hashlib.sha256(source.read_bytes()).hexdigest()[:12]
 
 
 def map_folder(root: Path, name: str, key: str, scene_key: str) -> Path:

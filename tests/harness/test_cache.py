@@ -13,8 +13,10 @@ from openreloc_bench.data.scene import Scene
 from openreloc_bench.errors import ConfigError
 from openreloc_bench.harness import cache
 from openreloc_bench.harness.runner import EvalConfig, MethodRun, evaluate
+from openreloc_bench.methods import create_method
+from openreloc_bench.plugins import load_plugin
 from openreloc_bench.tracks import MASK_FREE, ORACLE_MASK, PREDICTED
-from tests.conftest import write_tiny_scene
+from tests.conftest import FREE_PLUGIN, write_tiny_scene
 
 
 class Masked(NearestFrame):
@@ -119,3 +121,16 @@ def test_the_code_version_is_the_last_commit_that_changed_the_code(
     assert version() == code + "-dirty"
     changed = commit("openreloc_bench/method.py", "a = 2\n")
     assert version() == changed != code
+
+
+def test_a_plugins_maps_are_keyed_by_its_code_this_packages_by_config(plugin_sandbox: Path) -> None:
+    built_in = create_method("nearest-frame")
+    assert cache.foreign_code(built_in) is None  # versioned by the git commit every result records
+    plugin = plugin_sandbox / "free_plugin.py"
+    plugin.write_text(FREE_PLUGIN)
+    load_plugin(str(plugin))
+    method = create_method("free-plugin")
+    before = cache.map_key(method, MASK_FREE)
+    assert cache.foreign_code(method) is not None and cache.map_key(method, MASK_FREE) == before
+    plugin.write_text(FREE_PLUGIN + "\n# build_map changed\n")
+    assert cache.map_key(method, MASK_FREE) != before  # an edited plugin's maps are rebuilt, not reused

@@ -16,11 +16,12 @@ import os
 import pkgutil
 import signal
 import sys
+import traceback
 from types import ModuleType
 
 from openreloc_bench import __version__, commands
 from openreloc_bench.commands.options import load_plugin_arguments
-from openreloc_bench.errors import OpenRelocError
+from openreloc_bench.errors import OpenRelocError, PluginError
 
 log = logging.getLogger("openreloc_bench")
 
@@ -86,6 +87,8 @@ def main(argv: list[str] | None = None) -> int:
         load_plugin_arguments(args)  # before the command: its methods are then registered
         return int(args._run(args) or 0)
     except OpenRelocError as e:
+        if args.verbose and isinstance(e, PluginError) and e.__cause__ is not None:
+            traceback.print_exception(e.__cause__)  # where in the plugin, in full
         print(f"openreloc-bench {args.command}: error: {e}", file=sys.stderr)
         return 2
     except BrokenPipeError:  # the reader went away (`| head`): the work stopped unfinished, so not 0

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import traceback
 from pathlib import Path
 
 
@@ -24,3 +25,19 @@ class DataError(OpenRelocError):
 
 class ConfigError(OpenRelocError):
     """A config or spec value is unknown or out of range; the message names the key."""
+
+
+class PluginError(OpenRelocError):
+    """A method from outside this project raised while building or loading its map; the message names
+    the method and the file and line that raised (``-v`` shows the traceback)."""
+
+
+def raised_at(e: BaseException, file: Path | None = None) -> str:
+    """``<file> line <n>: <Error>: <message>`` on one line, at the innermost frame in ``file`` (a plugin's
+    source, where the bug most likely is) or else the innermost frame: what a test runner would show first."""
+    message = " ".join(str(e).split())[:300]
+    frames = traceback.extract_tb(e.__traceback__)
+    in_file = [f for f in frames if file is not None and Path(f.filename).resolve() == file]
+    frame = (in_file or frames or [None])[-1]
+    where = f"{Path(frame.filename).name} line {frame.lineno}: " if frame is not None else ""
+    return f"{where}{type(e).__name__}: {message}" if message else f"{where}{type(e).__name__}"

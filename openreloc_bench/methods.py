@@ -10,6 +10,7 @@ scripts and tests.
 
 from __future__ import annotations
 
+import inspect
 import logging
 import time
 from collections.abc import Callable
@@ -20,9 +21,10 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
+from openreloc_bench import config as cfglib
 from openreloc_bench import geometry
 from openreloc_bench.data.types import Frame, SceneSequence
-from openreloc_bench.errors import ConfigError
+from openreloc_bench.errors import ConfigError, raised_at
 from openreloc_bench.tracks import MASK_FREE, ORACLE_MASK, PREDICTED, RecordedTrack, Track
 
 ENTRY_POINT_GROUP = "openreloc_bench.methods"
@@ -202,19 +204,67 @@ def recorded_track(method: Relocalizer, track: Track) -> RecordedTrack:
 
 
 def create_method(name: str, **config: Any) -> Relocalizer:
-    """Instantiate a registered method; unknown names raise a ConfigError listing the known ones."""
+    """Instantiate a registered method; unknown names raise a ConfigError listing the known ones. A
+    method from outside this project (:func:`foreign_source`) has its settings checked against its
+    dataclass ``config`` (keys and types, as this project's methods check theirs), and a constructor that
+    raises is a ConfigError naming the plugin's file and line."""
     methods = available_methods()
     if name not in methods:
         known = ", ".join(sorted(methods)) or "none"
         raise ConfigError(f"unknown method '{name}' (registered: {known})")
-    method = methods[name](**config)
+    factory = methods[name]
+    try:
+        method = factory(**config)
+    except ConfigError:
+        raise
+    except Exception as e:  # noqa: BLE001 -- a plugin's bug, told in one line
+        if config:  # a typo in a setting is the likelier cause: say which
+            _check_settings(name, _default_instance(factory), config)
+        raise ConfigError(
+            f"method '{name}': its constructor raised at {raised_at(e, foreign_source(factory))}"
+        ) from None
     missing = [a for a in RELOCALIZER_ATTRIBUTES if not hasattr(method, a)]
     if missing:
         raise ConfigError(
             f"method '{name}': its {type(method).__name__} has no {', '.join(repr(a) for a in missing)}; a method "
             f"needs {', '.join(RELOCALIZER_ATTRIBUTES)} (see openreloc_bench.methods.Relocalizer)"
         )
+    if foreign_source(type(method)) is not None:
+        _check_settings(name, method, config)
     return method
+
+
+def _default_instance(factory: Callable[..., Relocalizer]) -> Relocalizer | None:
+    """``factory()`` with its default settings, None where that raises too."""
+    try:
+        return factory()
+    except Exception:  # noqa: BLE001 -- only its config is read
+        return None
+
+
+def _check_settings(name: str, method: Any, settings: dict[str, Any]) -> None:
+    """ConfigError for a setting that ``method``'s dataclass ``config`` does not have or types otherwise
+    (nothing to check without one)."""
+    cfg = getattr(method, "config", None)
+    if settings and is_dataclass(cfg) and not isinstance(cfg, type):
+        cfglib.from_dict(type(cfg), settings, f"method '{name}'")
+
+
+PROJECT_PACKAGES = ("openreloc_bench", "baselines")
+"""The packages whose methods are this project's own code (versioned by its git commit)."""
+
+
+def foreign_source(obj: Any) -> Path | None:
+    """The file defining ``obj`` (a method class or factory) when it is not this project's own code: a
+    ``--plugin`` file or another package's module; None for this project's, or without a file."""
+    try:
+        source = Path(inspect.getfile(obj)).resolve()
+    except (TypeError, OSError):  # built in a notebook or by exec
+        return None
+    root = Path(__file__).resolve().parents[1]
+    if not source.is_file() or any(source.is_relative_to(root / p) for p in PROJECT_PACKAGES):
+        return None
+    return source
 
 
 RELOCALIZER_ATTRIBUTES = ("name", "build_map", "load_map", "localize")

@@ -52,3 +52,57 @@ def test_the_example_reads_its_settings_and_fails_with_a_reason(hist_nn: Path, c
     assert main([*args, "--methods", "hist-nn", "--method-config", "hist-nn=strict.yaml"]) == 0
     q = pd.read_csv(hist_nn / "results" / "tables" / "queries.csv")
     assert not q["success"].any() and q["reason"].str.startswith("closest histogram at ").all()
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["config", "hist-nn", "--set", "bin=8"], r"unknown key 'method 'hist-nn'\.bin' \(known: bins, max_distance\)"),
+        (["config", "hist-nn", "--set", "bins=abc"], r"'method 'hist-nn'\.bins': expected an integer"),
+        (["map", "--method", "hist-nn", "--scene", "data/tiny", "--out", "m", "--set", "bin=8"], r"unknown key"),
+    ],
+)
+def test_the_examples_settings_are_checked_before_any_work(
+    hist_nn: Path, capsys: pytest.CaptureFixture, argv: list[str], message: str
+) -> None:
+    assert main([*argv, "--plugin", "./hist_nn.py"]) == 2
+    err = capsys.readouterr().err
+    assert re.search(message, err) and "Traceback" not in err and len(err.strip().splitlines()) == 1, err
+    assert not (hist_nn / "m").exists()
+
+
+@pytest.mark.parametrize(
+    ("bug", "command", "where"),
+    [
+        ("def __init__(self, **settings):", "config", "its constructor raised at hist_nn.py line"),
+        ("def build_map(self, mapping, map_dir):", "map", "build_map raised at hist_nn.py line"),
+    ],
+)
+def test_a_bug_in_the_example_is_one_line_naming_its_file_and_line(
+    hist_nn: Path, capsys: pytest.CaptureFixture, bug: str, command: str, where: str
+) -> None:
+    code = (hist_nn / "hist_nn.py").read_text()
+    assert bug in code
+    (hist_nn / "hist_nn.py").write_text(code.replace(bug, f"{bug}\n        raise KeyError('oops')", 1))
+    line = code.splitlines().index(next(ln for ln in code.splitlines() if bug in ln)) + 2
+    argv = ["config", "hist-nn"] if command == "config" else ["map", "--method", "hist-nn", "--scene", "data/tiny"]
+    assert (
+        main(
+            [*argv, "--out", "m", "--plugin", "./hist_nn.py"]
+            if command == "map"
+            else [*argv, "--plugin", "./hist_nn.py"]
+        )
+        == 2
+    )
+    err = capsys.readouterr().err
+    assert f"{where} {line}: KeyError: 'oops'" in err and "Traceback" not in err, err
+    assert not (hist_nn / "m").exists()  # no empty map folder left behind
+
+
+def test_the_examples_map_is_rebuilt_into_its_own_folder(hist_nn: Path, capsys: pytest.CaptureFixture) -> None:
+    from openreloc_bench.data import mapfile
+
+    argv = ["map", "--method", "hist-nn", "--scene", "data/tiny", "--out", "m", "--plugin", "./hist_nn.py"]
+    assert main(argv) == 0 and main(argv) == 0, capsys.readouterr().err
+    assert sorted(p.name for p in (hist_nn / "m").iterdir()) == ["manifest.json", "map.npz"]
+    assert mapfile.is_intact(hist_nn / "m") and mapfile.recorded_source(hist_nn / "m")["scene"] == "tiny"

@@ -142,13 +142,22 @@ def clear_file_set(directory: Path | str) -> None:
         (Path(directory) / name).unlink(missing_ok=True)
 
 
+FOREIGN_FORMAT = ("plugin-map", 1)
+"""The manifest's format of a map a method wrote in its own format (:func:`record_source`)."""
+
+
 def record_source(directory: Path | str, source: dict[str, str]) -> None:
     """Note in a written file set's manifest what it was made from (``built_from``: e.g. a map's scene
-    and its spec hash), so that a reader can refuse to pair it with something else. A directory without
-    a manifest (a plugin's own format) is left as it is."""
+    and its spec hash), so that a reader can refuse to pair it with something else. A map a method wrote
+    without a manifest (a plugin's own format) gets one, listing its files (:data:`FOREIGN_FORMAT`), so
+    that it is checked and replaced like any map; one with sub-folders is left as it is."""
     path = Path(directory) / MANIFEST
     if not path.is_file():
-        return
+        files = sorted(Path(directory).iterdir()) if Path(directory).is_dir() else []
+        if files and all(p.is_file() and not p.is_symlink() for p in files):
+            write_file_set(directory, *FOREIGN_FORMAT, {p.name: p.read_bytes() for p in files})
+        else:
+            return
     doc = io.read_json(path)
     if not isinstance(doc, dict):
         raise DataError(path, "not a file-set manifest")

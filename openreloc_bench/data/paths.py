@@ -113,9 +113,11 @@ def directory_lock(directory: Path, what: str, in_directory: bool = True) -> Ite
     ``flock`` on a dot file: the kernel releases it when its holder dies, even by SIGKILL. With
     ``in_directory=False`` the directory itself is locked and nothing is written into it (a map
     directory, every byte of which counts as the map's size; a dataset folder, which stays as the
-    user keeps it); the holder's pid is then unknown.
+    user keeps it); the holder's pid is then unknown, and a directory the lock created is removed again
+    if the job fails before writing into it.
     """
     directory = Path(directory)
+    created = not directory.exists()
     directory.mkdir(parents=True, exist_ok=True)
     if in_directory:
         fd = os.open(directory / LOCK_NAME, os.O_RDWR | os.O_CREAT, 0o666)
@@ -135,6 +137,10 @@ def directory_lock(directory: Path, what: str, in_directory: bool = True) -> Ite
             os.ftruncate(fd, 0)
             os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
         yield
+    except BaseException:
+        if created and not in_directory and directory.is_dir() and not any(directory.iterdir()):
+            directory.rmdir()
+        raise
     finally:
         os.close(fd)
 
@@ -166,16 +172,10 @@ def new_directory(out: Path, what: str, not_empty: str) -> Iterator[Path]:
     is locked meanwhile, so of two runs into it the second fails at once; ``not_empty`` is the one-line
     error for an ``out`` that holds files."""
     out = Path(out)
-    created = not out.exists()
-    try:
-        with directory_lock(out, what, in_directory=False):
-            if any(out.iterdir()):
-                raise ConfigError(not_empty)
-            with staged(out) as stage:
-                yield stage
-                os.rmdir(out)  # still empty: nobody else writes here while we hold the lock
-                os.rename(stage, out)
-    except BaseException:
-        if created and out.is_dir() and not any(out.iterdir()):
-            out.rmdir()
-        raise
+    with directory_lock(out, what, in_directory=False):
+        if any(out.iterdir()):
+            raise ConfigError(not_empty)
+        with staged(out) as stage:
+            yield stage
+            os.rmdir(out)  # still empty: nobody else writes here while we hold the lock
+            os.rename(stage, out)

@@ -14,7 +14,6 @@ either, so ``localize`` and ``view`` refuse every map of another scene.
 from __future__ import annotations
 
 import hashlib
-import inspect
 import json
 import shutil
 import subprocess
@@ -25,8 +24,8 @@ from typing import Any
 
 from openreloc_bench.data import io, mapfile, paths
 from openreloc_bench.data.scene import Scene
-from openreloc_bench.errors import ConfigError, DataError
-from openreloc_bench.methods import Relocalizer, map_config
+from openreloc_bench.errors import ConfigError, DataError, OpenRelocError, PluginError, raised_at
+from openreloc_bench.methods import Relocalizer, foreign_source, map_config
 from openreloc_bench.tracks import MASK_FREE, RecordedTrack
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
@@ -46,17 +45,12 @@ def map_key(method: Relocalizer, track: RecordedTrack) -> str:
 
 
 def foreign_code(method: Relocalizer) -> str | None:
-    """The sha256 of the file that defines ``method``'s class when that is not this package's (a
-    ``--plugin`` file, another package's module), so that editing a plugin's ``build_map`` rebuilds its
-    maps instead of scoring the old code's; None for this package's methods, whose code version every
+    """The sha256 of the file that defines ``method``'s class when that is not this project's
+    (:func:`~openreloc_bench.methods.foreign_source`), so that editing a plugin's ``build_map`` rebuilds
+    its maps instead of scoring the old code's; None for this project's methods, whose code version every
     result records (:func:`git_commit`)."""
-    try:
-        source = Path(inspect.getfile(type(method))).resolve()
-    except (TypeError, OSError):  # a class without a file (built in a notebook or by exec)
-        return None
-    if any(source.is_relative_to(REPO_ROOT / p) for p in CODE_PATHS) or not source.is_file():
-        return None
-    return hashlib.sha256(source.read_bytes()).hexdigest()[:12]
+    source = foreign_source(type(method))
+    return hashlib.sha256(source.read_bytes()).hexdigest()[:12] if source is not None else None
 
 
 def map_folder(root: Path, name: str, key: str, scene_key: str) -> Path:
@@ -128,7 +122,14 @@ def build_map(method: Relocalizer, scene: Scene, track: RecordedTrack, map_dir: 
     map_dir.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     try:
-        method.build_map(mapping, map_dir)
+        try:
+            method.build_map(mapping, map_dir)
+        except OpenRelocError:
+            raise
+        except Exception as e:
+            if (source := foreign_source(type(method))) is None:
+                raise  # this project's bug: its traceback is wanted
+            raise PluginError(f"method '{method.name}': build_map raised at {raised_at(e, source)}") from e
     except BaseException:
         for p in map_dir.iterdir():
             if p.is_dir() and not p.is_symlink():

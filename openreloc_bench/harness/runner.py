@@ -162,13 +162,6 @@ def list_jobs(cfg: EvalConfig) -> tuple[list[MapJob], list[QueryJob]]:
     return map_jobs, query_jobs
 
 
-def _create(run: MethodRun) -> Relocalizer:
-    try:
-        return create_method(run.method, **run.overrides)
-    except TypeError as e:  # plugins that take **kwargs loosely fail this way on a bad key
-        raise ConfigError(f"method '{run.label}': invalid config ({e})") from None
-
-
 def variant_runs(names: list[str], overrides: dict[str, dict[str, Any]], ablations: bool) -> list[MethodRun]:
     """Each named method with its config overrides, plus the paper's ablation rows of
     ``ABLATED_METHOD`` (and the full method they are compared with) if ``ablations``."""
@@ -187,7 +180,7 @@ def seeded_runs(runs: list[MethodRun], seeds: list[int]) -> list[tuple[MethodRun
         raise ConfigError(f"seeds repeat: {seeds}")
     out = []
     for run in runs:
-        method = _create(run)
+        method = create_method(run.method, **run.overrides)
         if not seeds or "seed" not in method_config(method)["config"]:
             out.append((run, method))
             continue
@@ -196,7 +189,7 @@ def seeded_runs(runs: list[MethodRun], seeds: list[int]) -> list[tuple[MethodRun
                 f"method '{run.label}': its config sets seed {run.overrides['seed']} and seeds "
                 f"{seeds} are given too; use one of them"
             )
-        out += [(r, _create(r)) for r in map(run.with_seed, seeds)]
+        out += [(r, create_method(r.method, **r.overrides)) for r in map(run.with_seed, seeds)]
     return out
 
 

@@ -123,5 +123,14 @@ def test_a_set_records_what_it_was_built_from(tmp_path: Path) -> None:
     assert mapfile.read_file_set(tmp_path / "s", "fmt", 1) == {"a.bin": b"x"}  # still an intact set
     mapfile.clear_file_set(tmp_path / "s")
     assert not any((tmp_path / "s").iterdir())
-    mapfile.record_source(tmp_path / "none", {"scene": "x"})  # no manifest (a plugin's format): left alone
+    mapfile.record_source(tmp_path / "none", {"scene": "x"})  # nothing there: nothing written
     assert not (tmp_path / "none").exists()
+    plugin = tmp_path / "plugin"  # a map in a method's own format: listed, so it is checked and replaced
+    plugin.mkdir()
+    (plugin / "map.npz").write_bytes(b"y")
+    mapfile.record_source(plugin, {"scene": "x"})
+    assert mapfile.read_file_set(plugin, *mapfile.FOREIGN_FORMAT) == {"map.npz": b"y"}
+    assert mapfile.recorded_source(plugin) == {"scene": "x"}
+    (nested := tmp_path / "nested" / "sub").mkdir(parents=True)
+    mapfile.record_source(nested.parent, {"scene": "x"})  # sub-folders: cannot be listed, left alone
+    assert [p.name for p in nested.parent.iterdir()] == ["sub"]

@@ -55,7 +55,7 @@ def test_an_interrupted_map_build_leaves_nothing_to_mistake_for_a_map(world: Wor
     monkeypatch.setattr(NearestFrame, "build_map", interrupted)
     argv = ["map", "--method", "nearest-frame", "--scene", str(world.scene), "--out", str(world.tmp / "m")]
     assert run(argv, capsys)[0] == 130
-    assert list((world.tmp / "m").iterdir()) == []
+    assert not (world.tmp / "m").exists()  # the folder the build made is gone with the half map
     monkeypatch.undo()
     assert run(argv, capsys)[0] == 0  # and the next build goes ahead
 

@@ -38,14 +38,19 @@ def _file_mode() -> int:
 
 
 def process_alive(pid: int) -> bool:
-    """Whether process ``pid`` is running (one of another user's counts as running)."""
+    """Whether process ``pid`` is running (one of another user's counts as running). A zombie (ended,
+    not yet reaped by its parent, as a killed eval is until its shell waits on it) is not."""
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
         return False
     except PermissionError:
         return True
-    return True
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:  # no procfs (not Linux): the signal's answer stands
+        return True
+    return stat.rpartition(")")[2].split()[:1] != ["Z"]  # the state follows the command name in parentheses
 
 
 def _writer_alive(temp: Path) -> bool:

@@ -10,9 +10,12 @@ from pycolmap's LO-RANSAC with refinement. Where keypoints fail (dark, texturele
 the object pose stands.
 
 Mapping (:func:`build_anchors`): SIFT on every mapping frame; a keypoint belongs to the landmark whose
-scene points lie within ``support_radius`` of its 3D point (keypoints off every landmark are dropped);
-per landmark, at most ``per_voxel`` keypoints of each ``voxel`` of space are kept (seeded choice), which
-bounds the map while keeping every part of the object and several views of each.
+scene points lie within ``support_radius`` of its 3D point (keypoints off every landmark are dropped).
+Each ``voxel`` of a landmark keeps the ``per_voxel`` points seen in the most mapping frames, one
+descriptor each (:func:`_most_seen`), as an SfM map keeps one point per track rather than every view of
+it; the descriptors are then stored in ``descriptor_bytes`` bytes each by product quantisation
+(:class:`DescriptorCodec`) fitted on the map's own. Both bound the map (storage and matching time)
+while keeping every part of every object.
 
 Query (:func:`match_anchors`): a query keypoint matches its nearest anchor (RootSIFT) when that is
 closer than ``ratio`` times the nearest anchor lying elsewhere (farther than ``distinct_m`` in 3D): the
@@ -37,6 +40,9 @@ from openreloc_bench.data.types import SceneSequence
 from openreloc_bench.vision.absolute_pose import AbsolutePoseConfig, estimate_absolute_pose
 from openreloc_bench.vision.local_features import SiftConfig, extract_sift, lift, root_sift
 
+DESCRIPTOR_SIZE = 128
+"""SIFT's descriptor length."""
+
 
 @dataclass
 class AnchorBuildConfig:
@@ -53,11 +59,22 @@ class AnchorBuildConfig:
     """A keypoint belongs to a landmark when one of the landmark's scene points lies this close (m)."""
     voxel: float = 0.05
     """Side (m) of the cells in which a landmark's keypoints are thinned."""
-    per_voxel: int = 4
-    """Keypoints kept per cell: several views of every part of the object, not every view of each."""
+    per_voxel: int = 1
+    """Points kept per cell, those seen in the most mapping frames first."""
+    same_point: float = 0.3
+    """RootSIFT distance under which two keypoints of a cell count as views of one point."""
+    descriptor_bytes: int = 32
+    """Bytes a stored descriptor keeps (product quantisation; a divisor of 128, where 128 keeps each
+    dimension at 256 levels)."""
 
     def __post_init__(self) -> None:
-        check_ranges(self, positive=("max_depth_step", "support_radius", "voxel"), at_least_one=("per_voxel",))
+        check_ranges(
+            self,
+            positive=("max_depth_step", "support_radius", "voxel", "same_point"),
+            at_least_one=("per_voxel",),
+        )
+        if self.descriptor_bytes < 1 or DESCRIPTOR_SIZE % self.descriptor_bytes:
+            raise ValueError(f"descriptor_bytes must divide {DESCRIPTOR_SIZE}, got {self.descriptor_bytes}")
 
 
 @dataclass
@@ -106,34 +123,67 @@ class AnchorConfig:
 
 
 @dataclass
+class DescriptorCodec:
+    """RootSIFT descriptors as product-quantisation codes (Jegou et al. 2011; faiss trains and encodes):
+    the descriptor is cut into one part per byte, each stored as the nearest of 256 centroids fitted on
+    the map's own. Matching decodes them once (:meth:`decode`) and compares queries' descriptors with
+    the decoded ones."""
+
+    centroids: np.ndarray
+    """(bytes, 256, 128 / bytes) float32: the centroids of every part."""
+
+    @classmethod
+    def fit(cls, root: np.ndarray, n_bytes: int) -> tuple[DescriptorCodec, np.ndarray]:
+        """The codec of ``n_bytes`` parts fitted on RootSIFT descriptors ``root`` (N, 128), and their
+        (N, n_bytes) uint8 codes. Seeded and on one thread: the same map, byte for byte, every time."""
+        import faiss  # only when a map is built
+
+        pq = faiss.ProductQuantizer(DESCRIPTOR_SIZE, n_bytes, 8)
+        pq.cp.seed, pq.cp.min_points_per_centroid = 0, 1  # (a small map: fewer points than centroids)
+        train = np.ascontiguousarray(np.resize(root, (max(len(root), 256), DESCRIPTOR_SIZE)), np.float32)
+        threads = faiss.omp_get_max_threads()
+        faiss.omp_set_num_threads(1)
+        try:
+            pq.train(train)
+            codes = pq.compute_codes(np.ascontiguousarray(root, np.float32))
+        finally:
+            faiss.omp_set_num_threads(threads)
+        centroids = faiss.vector_to_array(pq.centroids).reshape(n_bytes, 256, DESCRIPTOR_SIZE // n_bytes)
+        return cls(centroids.astype(np.float32)), codes
+
+    @classmethod
+    def empty(cls) -> DescriptorCodec:
+        return cls(np.zeros((0, 256, 0), np.float32))
+
+    def decode(self, codes: np.ndarray) -> np.ndarray:
+        """(N, 128) float32 descriptors the (N, bytes) codes stand for."""
+        parts = self.centroids[np.arange(len(self.centroids)), codes.astype(np.intp)]  # (N, bytes, 128 / bytes)
+        return np.ascontiguousarray(parts.reshape(len(codes), -1), np.float32)
+
+
+@dataclass
 class Anchors:
     """Every kept keypoint of every landmark."""
 
     xyz: np.ndarray
     """(N, 3) float32 world points."""
-    descriptors: np.ndarray
-    """(N, 128) uint8 SIFT descriptors."""
+    codes: np.ndarray
+    """(N, bytes) uint8 product-quantised RootSIFT descriptors."""
     landmark: np.ndarray
     """(N,) int32 landmark id."""
+    codec: DescriptorCodec = field(default_factory=DescriptorCodec.empty)
+    """How ``codes`` stand for RootSIFT descriptors."""
 
     def __len__(self) -> int:
         return len(self.xyz)
 
-    def take(self, rows: np.ndarray) -> Anchors:
-        return Anchors(self.xyz[rows], self.descriptors[rows], self.landmark[rows])
-
     @classmethod
     def empty(cls) -> Anchors:
-        return cls(np.zeros((0, 3), np.float32), np.zeros((0, 128), np.uint8), np.zeros(0, np.int32))
+        return cls(np.zeros((0, 3), np.float32), np.zeros((0, 0), np.uint8), np.zeros(0, np.int32))
 
 
 def build_anchors(
-    seq: SceneSequence,
-    points: np.ndarray,
-    labels: np.ndarray,
-    cfg: AnchorBuildConfig,
-    seed: int,
-    progress: bool = True,
+    seq: SceneSequence, points: np.ndarray, labels: np.ndarray, cfg: AnchorBuildConfig, progress: bool = True
 ) -> Anchors:
     """The keypoints of the mapping frames on the landmarks: ``points`` (N, 3) is the scene cloud and
     ``labels`` (N,) each point's landmark (0: none)."""
@@ -141,29 +191,48 @@ def build_anchors(
     if not on.any() or not seq.has_depth:
         return Anchors.empty()
     tree, owner = cKDTree(points[on]), labels[on].astype(np.int32)
-    parts = []
+    xyz, root, landmark = [], [], []
     for frame in tqdm(seq, total=len(seq), desc="anchors", disable=not progress, leave=False):
         feats = extract_sift(frame.color, cfg.features)
-        xyz, valid = lift(feats.xy, frame.depth, frame.K, frame.T_wc, cfg.max_depth_step)
-        dist, nearest = tree.query(xyz[valid], distance_upper_bound=cfg.support_radius)
+        lifted, valid = lift(feats.xy, frame.depth, frame.K, frame.T_wc, cfg.max_depth_step)
+        dist, nearest = tree.query(lifted[valid], distance_upper_bound=cfg.support_radius)
         found = np.isfinite(dist)
         rows = np.flatnonzero(valid)[found]
-        parts.append(Anchors(xyz[rows], feats.descriptors[rows], owner[nearest[found]]))
-    if not parts:
+        xyz.append(lifted[rows].astype(np.float32))
+        root.append(root_sift(feats.descriptors[rows]))
+        landmark.append(owner[nearest[found]])
+    every_xyz, every_root, every_landmark = (np.concatenate(a) for a in (xyz, root, landmark))
+    if not len(every_xyz):
         return Anchors.empty()
-    every = Anchors(*(np.concatenate(a) for a in zip(*((p.xyz, p.descriptors, p.landmark) for p in parts))))
-    return every.take(_thin(every, cfg, np.random.default_rng(seed)))
+    keep = _most_seen(every_xyz, every_root, every_landmark, cfg)
+    codec, codes = DescriptorCodec.fit(every_root[keep], cfg.descriptor_bytes)
+    return Anchors(every_xyz[keep], codes, every_landmark[keep], codec)
 
 
-def _thin(a: Anchors, cfg: AnchorBuildConfig, rng: np.random.Generator) -> np.ndarray:
-    """Rows kept: at most ``per_voxel`` of each (landmark, voxel) cell, chosen at random; sorted."""
-    cell = np.floor(a.xyz / cfg.voxel).astype(np.int64)
-    _, group = np.unique(np.column_stack([a.landmark, cell]), axis=0, return_inverse=True)
-    order = np.lexsort((rng.random(len(a)), group.ravel()))
-    g = group.ravel()[order]
-    first = np.r_[0, np.flatnonzero(np.diff(g)) + 1]
-    rank = np.arange(len(g)) - np.repeat(first, np.diff(np.r_[first, len(g)]))
-    return np.sort(order[rank < cfg.per_voxel])
+def _most_seen(xyz: np.ndarray, root: np.ndarray, landmark: np.ndarray, cfg: AnchorBuildConfig) -> np.ndarray:
+    """Rows kept, sorted: in each (landmark, voxel) cell, the keypoint with the most others within
+    ``same_point`` of its RootSIFT descriptor (its views), then the same among those it does not cover,
+    up to ``per_voxel`` (a greedy cover; ties to the earlier keypoint)."""
+    cell = np.floor(xyz / cfg.voxel).astype(np.int64)
+    _, group = np.unique(np.column_stack([landmark, cell]), axis=0, return_inverse=True)
+    order = np.argsort(group.ravel(), kind="stable")
+    bounds = np.flatnonzero(np.diff(group.ravel()[order])) + 1
+    near = 2.0 - cfg.same_point**2  # unit vectors: |a - b|^2 = 2 - 2 a.b
+    kept = []
+    for rows in np.split(order, bounds):
+        if len(rows) == 1:
+            kept.append(rows)
+            continue
+        views = 2.0 * (root[rows] @ root[rows].T) > near
+        uncovered = np.ones(len(rows), bool)
+        for _ in range(cfg.per_voxel):
+            counts = (views & uncovered).sum(axis=1) * uncovered
+            best = int(np.argmax(counts))
+            if not uncovered[best]:
+                break
+            kept.append(rows[best : best + 1])
+            uncovered &= ~views[best]
+    return np.sort(np.concatenate(kept))
 
 
 @dataclass
@@ -204,11 +273,11 @@ def refined_or_prior(
 
 
 class AnchorIndex:
-    """A map's anchors ready for queries: RootSIFT descriptors computed once."""
+    """A map's anchors ready for queries: their descriptors decoded once."""
 
     def __init__(self, anchors: Anchors, features: SiftConfig):
         self.anchors, self.features = anchors, features
-        self.root = root_sift(anchors.descriptors)
+        self.space = anchors.codec.decode(anchors.codes)
 
     def localize(
         self,
@@ -233,7 +302,7 @@ class AnchorIndex:
         diag.update(landmarks=len(landmarks), anchors=len(rows), keypoints=len(feats))
         if len(rows) < cfg.seed_inliers or len(feats) < cfg.seed_inliers:
             return None
-        query, mapped = match_anchors(root_sift(feats.descriptors), self.root[rows], self.anchors.xyz[rows], cfg)
+        query, mapped = match_anchors(root_sift(feats.descriptors), self.space[rows], self.anchors.xyz[rows], cfg)
         diag["matches"] = len(query)
         pose = estimate_absolute_pose(
             feats.xy[query], self.anchors.xyz[rows[mapped]], K, w, h, dataclasses.replace(cfg.pose, seed=seed)

@@ -123,7 +123,6 @@ def build_object_map(
                 rec.points,
                 np.where(np.isin(labels, ids), labels, 0),
                 config.anchors,
-                config.seed,
                 progress,
             )
             if config.anchors.enabled

@@ -6,7 +6,8 @@ mapping camera. On disk (``map_dir``)::
 
     arrays.npz      landmark points (uint16-quantised offsets in their box), descriptors (float16),
                     reference frames (ragged arrays), graph edges, the landmarks' keypoints
-                    (:mod:`.anchors`: world points, uint8 SIFT descriptors, owning landmark)
+                    (:mod:`.anchors`: world points, product-quantisation codes of their RootSIFT
+                    descriptors and the codebook, owning landmark)
     meta.json       format version, camera, encoder/mapping config, stats, per-landmark scalars
     manifest.json   written last: format name + version and the sha256 and size of every file
 
@@ -26,10 +27,10 @@ import numpy as np
 
 from openreloc_bench.data import mapfile
 from openreloc_bench.errors import DataError
-from openreloc_bench.openreloc.anchors import Anchors
+from openreloc_bench.openreloc.anchors import DESCRIPTOR_SIZE, Anchors, DescriptorCodec
 
-MAP_FORMAT_VERSION = 2
-"""2: the landmarks' keypoints (anchors) and the world's up."""
+MAP_FORMAT_VERSION = 3
+"""2: the landmarks' keypoints (anchors) and the world's up; 3: one product-quantised descriptor per anchor."""
 MAP_FORMAT_NAME = "openreloc-map"
 EDGE_KINDS = ("knn", "overlap")
 _POINT_QUANTUM_M = 0.001  # landmark points are stored to 1 mm (coarser only for boxes > 65 m)
@@ -156,8 +157,9 @@ class ObjectMap:
             "graph_edges": np.array([e[:2] for e in edges], dtype=np.int32).reshape(-1, 2),
             "graph_edge_kind": np.array([e[2] for e in edges], dtype=np.uint8),
             "anchor_xyz": self.anchors.xyz.astype(np.float32),
-            "anchor_descriptors": self.anchors.descriptors.astype(np.uint8),
+            "anchor_codes": self.anchors.codes.astype(np.uint8),
             "anchor_landmark": self.anchors.landmark.astype(np.int32),
+            "anchor_centroids": self.anchors.codec.centroids.astype(np.float32),
         }
         meta = {
             "K": np.asarray(self.K, dtype=float).tolist(),
@@ -224,11 +226,15 @@ class ObjectMap:
                     visibility={i: float(v) for i, v in zip(rids, a["rf_visibility"][sl])},
                 )
             )
+        codec = DescriptorCodec(a["anchor_centroids"])
+        parts, levels, width = codec.centroids.shape
         anchors = Anchors(
-            a["anchor_xyz"].reshape(-1, 3), a["anchor_descriptors"].reshape(-1, 128), a["anchor_landmark"].ravel()
+            a["anchor_xyz"].reshape(-1, 3), a["anchor_codes"].reshape(-1, parts), a["anchor_landmark"].ravel(), codec
         )
-        if not len(anchors.xyz) == len(anchors.descriptors) == len(anchors.landmark):
-            raise ValueError("anchor arrays of different lengths")
+        if not len(anchors.xyz) == len(anchors.codes) == len(anchors.landmark) or (
+            parts and (levels != 256 or parts * width != DESCRIPTOR_SIZE)
+        ):
+            raise ValueError("anchor arrays of different lengths or a malformed codebook")
         graph = nx.Graph()
         graph.add_nodes_from(int(n) for n in meta["graph_nodes"])
         for (u, v), kind in zip(a["graph_edges"], a["graph_edge_kind"]):
@@ -258,7 +264,12 @@ COMPONENTS = {
     "descriptors": ("descriptors",),
     "reference_frames": ("rf_index", "rf_T_wc", "rf_counts", "rf_ids", "rf_boxes", "rf_visibility"),
     "scene_graph": ("graph_edges", "graph_edge_kind"),
-    "anchors": ("anchor_xyz", "anchor_descriptors", "anchor_landmark"),
+    "anchors": (
+        "anchor_xyz",
+        "anchor_codes",
+        "anchor_landmark",
+        "anchor_centroids",
+    ),
 }
 """The map's parts, by the arrays that hold them."""
 

@@ -17,13 +17,14 @@ from openreloc_bench.openreloc.anchors import (
     AnchorBuildConfig,
     AnchorConfig,
     AnchorPose,
-    Anchors,
-    _thin,
+    DescriptorCodec,
+    _most_seen,
     in_some_view,
     match_anchors,
     refined_or_prior,
 )
 from openreloc_bench.openreloc.map import ObjectMap
+from openreloc_bench.vision.local_features import root_sift
 
 TINY = dict(
     width=320, height=240, objects_per_room=12, room_side_min=3.5, room_side_max=4.0, mapping_step_m=0.5,
@@ -31,18 +32,35 @@ TINY = dict(
 )  # fmt: skip
 
 
-def test_thinning_keeps_at_most_per_voxel_of_each_landmark_cell() -> None:
-    xyz = np.array([[0.01, 0.01, 0.01]] * 6 + [[0.3, 0.01, 0.01]] * 2 + [[0.01, 0.01, 0.01]] * 3, np.float32)
-    landmark = np.array([1] * 8 + [2] * 3, np.int32)
-    a = Anchors(xyz, np.zeros((11, 128), np.uint8), landmark)
-    cfg = AnchorBuildConfig(voxel=0.1, per_voxel=4)
-    rows = _thin(a, cfg, np.random.default_rng(0))
-    kept = a.take(rows)
-    # landmark 1: 4 of its 6 in the first cell and both in the second; landmark 2 shares the first cell
-    # in space but is its own cell
-    assert np.bincount(kept.landmark).tolist() == [0, 6, 3]
-    assert rows.tolist() == sorted(rows.tolist())
-    assert np.array_equal(rows, _thin(a, cfg, np.random.default_rng(0)))  # seeded
+def test_each_cell_keeps_the_points_seen_most_once_each() -> None:
+    rng = np.random.default_rng(0)
+    looks = root_sift(rng.integers(0, 255, (3, 128)).astype(np.uint8))  # three unlike points
+    views = np.array([0, 1, 1, 1, 2, 2, 0, 0])  # point 1 seen thrice, point 2 twice, point 0 once (cell 1)
+    root = looks[views] + rng.normal(0, 0.003, (8, 128)).astype(np.float32)  # views differ a little
+    root /= np.linalg.norm(root, axis=1, keepdims=True)
+    xyz = np.array([[0.01, 0.01, 0.01]] * 6 + [[0.3, 0.01, 0.01], [0.01, 0.01, 0.01]], np.float32)
+    landmark = np.array([1] * 7 + [2], np.int32)  # the last shares cell 1's space but is another landmark's
+    one = _most_seen(xyz, root, landmark, AnchorBuildConfig(voxel=0.1, per_voxel=1))
+    assert one.tolist() == [1, 6, 7]  # point 1's first view; the lone keypoints of the other cells
+    two = _most_seen(xyz, root, landmark, AnchorBuildConfig(voxel=0.1, per_voxel=2))
+    assert two.tolist() == [1, 4, 6, 7]  # then point 2 (two views) before point 0 (one)
+    assert _most_seen(xyz, root, landmark, AnchorBuildConfig(voxel=0.1, per_voxel=3)).tolist() == [0, 1, 4, 6, 7]
+
+
+def test_the_codec_keeps_the_nearest_descriptor_nearest_and_is_seeded() -> None:
+    rng = np.random.default_rng(1)
+    root = root_sift(rng.integers(0, 40, (2000, 128)).astype(np.uint8))
+    codec, codes = DescriptorCodec.fit(root, 32)
+    assert codes.shape == (2000, 32) and codes.dtype == np.uint8 and codec.centroids.shape == (32, 256, 4)
+    decoded = codec.decode(codes)
+    assert decoded.shape == (2000, 128) and np.linalg.norm(decoded - root, axis=1).mean() < 0.3
+    noisy = root[:300] + rng.normal(0, 0.01, (300, 128)).astype(np.float32)  # other views of the same points
+    found = np.argmin(((noisy[:, None] - decoded[None]) ** 2).sum(-1), axis=1)
+    assert (found == np.arange(300)).mean() > 0.95
+    again, codes_again = DescriptorCodec.fit(root, 32)
+    assert np.array_equal(codes, codes_again) and np.array_equal(codec.centroids, again.centroids)
+    few, few_codes = DescriptorCodec.fit(root[:5], 128)  # fewer descriptors than centroids: each its own
+    assert np.abs(few.decode(few_codes) - root[:5]).max() < 1e-6
 
 
 def test_ratio_test_rivals_only_anchors_lying_elsewhere() -> None:

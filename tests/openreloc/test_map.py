@@ -11,7 +11,7 @@ import pytest
 
 from openreloc_bench.data.mapfile import MANIFEST
 from openreloc_bench.errors import DataError
-from openreloc_bench.openreloc.anchors import Anchors
+from openreloc_bench.openreloc.anchors import Anchors, DescriptorCodec
 from openreloc_bench.openreloc.map import (
     COMPONENTS,
     Landmark,
@@ -19,6 +19,7 @@ from openreloc_bench.openreloc.map import (
     ReferenceFrame,
     map_size_bytes,
 )
+from openreloc_bench.vision.local_features import root_sift
 
 
 def make_map(n: int = 5, dim: int = 16, seed: int = 0) -> ObjectMap:
@@ -51,10 +52,13 @@ def make_map(n: int = 5, dim: int = 16, seed: int = 0) -> ObjectMap:
     g.add_edge(1, 2, kind="knn")
     g.add_edge(3, 2, kind="overlap")
     K = np.array([[100.0, 0, 31.5], [0, 100, 23.5], [0, 0, 1]])
+    root = root_sift(rng.integers(0, 255, (7, 128)).astype(np.uint8))
+    codec, codes = DescriptorCodec.fit(root, 4)
     anchors = Anchors(
         rng.uniform(0, 5, (7, 3)).astype(np.float32),
-        rng.integers(0, 255, (7, 128), dtype=np.uint8),
+        codes,
         np.array([1, 1, 2, 2, 2, 3, 4], np.int32),
+        codec,
     )
     up = np.array([0.0, -1.0, 0.0])  # a recording's world: gravity along +y
     return ObjectMap(landmarks, rfs, g, K, 64, 48, {"name": "test"}, {"voxel": 0.02}, {"frames_total": 9}, anchors, up)
@@ -85,8 +89,9 @@ def test_round_trip(tmp_path: Path) -> None:
         (2, 3, "overlap"),
     }
     assert set(r.graph.nodes) == set(m.landmarks)
-    for got, want in zip(vars(r.anchors).values(), vars(m.anchors).values()):
-        np.testing.assert_array_equal(got, want)
+    for part in ("xyz", "codes", "landmark"):
+        np.testing.assert_array_equal(getattr(r.anchors, part), getattr(m.anchors, part))
+    np.testing.assert_array_equal(r.anchors.codec.centroids, m.anchors.codec.centroids)
     np.testing.assert_array_equal(r.up, m.up)
     assert (r.width, r.height, r.encoder, r.config, r.stats["frames_total"]) == (
         64,
@@ -96,7 +101,9 @@ def test_round_trip(tmp_path: Path) -> None:
         9,
     )
     a = m.anchors  # the size of each part is recorded: the keypoints' share of the map, for one
-    assert r.stats["bytes"]["anchors"] == len(a.xyz) * (12 + 128 + 4) and set(r.stats["bytes"]) == set(COMPONENTS)
+    codebook = 4 * 256 * 32 * 4  # 4 parts of 32 dimensions, 256 float32 centroids each
+    assert r.stats["bytes"]["anchors"] == len(a.xyz) * (12 + 4 + 4) + codebook
+    assert set(r.stats["bytes"]) == set(COMPONENTS)
 
 
 def test_save_is_deterministic_and_compact(tmp_path: Path) -> None:

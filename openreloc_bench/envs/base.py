@@ -22,12 +22,14 @@ deterministic). ``info`` always has ``collided`` and ``relocalized`` (this view 
 the relocalizer); the final ``info`` of an episode has the task's metrics. Subclasses define the task:
 :meth:`IndoorEnv._task_reset`, :meth:`IndoorEnv._task_step` and :meth:`IndoorEnv._episode_metrics`.
 
-Episodes truncate themselves after ``max_steps`` (register no ``TimeLimit`` on top). Autoreset is
+Episodes truncate themselves after ``max_steps``, which ``env.spec.max_episode_steps`` reports (register
+no ``TimeLimit`` on top). Autoreset is
 gymnasium's default for vector environments (next step).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import os
 import sys
@@ -37,6 +39,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
+from gymnasium.envs.registration import EnvSpec
 from gymnasium.utils import EzPickle
 
 from openreloc_bench import config, geometry
@@ -146,6 +149,17 @@ class IndoorEnv(gym.Env, EzPickle):
     """Name of action 5."""
     reset_options: tuple[str, ...] = ()
     """The keys ``reset(options=...)`` reads; any other is a ValueError (a typo would pass unnoticed)."""
+
+    @property
+    def spec(self) -> EnvSpec | None:
+        """The registration ``gym.make`` made this from, with ``max_episode_steps`` the episode's own
+        truncation (``max_steps``: the environment truncates itself, so no ``TimeLimit`` wraps it)."""
+        spec = self.__dict__.get("_spec")
+        return None if spec is None else dataclasses.replace(spec, max_episode_steps=self.config.max_steps)
+
+    @spec.setter
+    def spec(self, value: EnvSpec | None) -> None:
+        self._spec = value
 
     def __init__(self, render_mode: str | None = None, **options: Any):
         EzPickle.__init__(self, render_mode, **options)

@@ -229,3 +229,17 @@ def test_stable_baselines3_accepts_the_spaces(make_env, env_id: str) -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         sb3_checker.check_env(env.unwrapped, warn=True)
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_the_spec_reports_the_episodes_own_step_limit(make_env, env_id: str) -> None:
+    env = make_env(env_id, max_steps=7)
+    assert env.spec.max_episode_steps == 7 and env.unwrapped.spec.max_episode_steps == 7
+    assert "TimeLimit" not in repr(env)  # the environment truncates itself: no second limit on top
+    env.reset(seed=0)
+    steps, truncated = 0, False
+    while not truncated:
+        *_, terminated, truncated, _ = env.step(0)  # forward only: never ends the task
+        steps += 1
+        assert not terminated
+    assert steps == 7

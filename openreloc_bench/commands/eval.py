@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import math
+from collections.abc import Sequence
 from pathlib import Path
 
 from openreloc_bench import config
@@ -74,11 +75,23 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         metavar="NAME=YAML",
         help="config overrides for one method from a YAML mapping (repeatable)",
     )
+    p.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="NAME:KEY=VALUE",
+        help="one setting of one method, over its --method-config (YAML value; nested keys with dots, "
+        "e.g. openreloc:anchors.enabled=false); repeatable",
+    )
     add_plugin_argument(p)
 
 
-def method_runs(names: list[str], config_files: list[str], ablations: bool) -> list[runner.MethodRun]:
-    """Method variants: each named method with its overrides, plus the ablation rows if asked."""
+def method_runs(
+    names: list[str], config_files: list[str], ablations: bool, settings: Sequence[str] = ()
+) -> list[runner.MethodRun]:
+    """Method variants: each named method with its overrides (``--method-config`` files, then ``--set``
+    settings over them), plus the ablation rows if asked."""
     overrides: dict[str, dict] = {}
     for item in config_files:
         name, sep, path = item.partition("=")
@@ -89,6 +102,13 @@ def method_runs(names: list[str], config_files: list[str], ablations: bool) -> l
         if name in overrides:
             raise ConfigError(f"--method-config names '{name}' twice; merge the settings into one file")
         overrides[name] = config.load_mapping(path)
+    for item in settings:
+        name, sep, setting = item.partition(":")
+        if not sep or not name or "=" not in setting:
+            raise ConfigError(f"--set expects NAME:KEY=VALUE (e.g. openreloc:anchors.enabled=false), got '{item}'")
+        if name not in names:
+            raise ConfigError(f"--set names '{name}', which is not in --methods")
+        overrides[name] = config.merge(overrides.get(name, {}), config.parse_overrides([setting]))
     return runner.variant_runs(names, overrides, ablations)
 
 
@@ -133,7 +153,7 @@ def eval_config(args: argparse.Namespace) -> runner.EvalConfig:
         raise ConfigError("--splits: 'mapping' builds the maps; localizing its own frames measures nothing")
     if args.robustness:
         splits += [r.key for r in ROBUSTNESS_ROWS if r.key not in splits]
-    runs = method_runs(comma_list(args.methods, "--methods"), args.method_config, args.ablations)
+    runs = method_runs(comma_list(args.methods, "--methods"), args.method_config, args.ablations, args.overrides)
     seeds = _seeds(args.seeds)
     scenes = [] if args.scenes is None else scene_names(comma_list(args.scenes, "--scenes"), args.data)
     return runner.EvalConfig(

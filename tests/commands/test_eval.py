@@ -175,3 +175,24 @@ def test_ablation_flag_adds_one_variant_per_paper_row() -> None:
     runs = method_runs(["nearest-frame"], [], ablations=True)
     assert [r.label for r in runs] == ["nearest-frame", *[f"openreloc+{r.key}" for r in ABLATION_ROWS], "openreloc"]
     assert runs[1].overrides == {"no_refine": True} and runs[5].overrides == {"retrieval": "visibility"}
+
+
+def test_set_overrides_one_method_over_its_config_file(tmp_path: Path) -> None:
+    from openreloc_bench.commands.eval import method_runs
+    from openreloc_bench.errors import ConfigError
+
+    path = tmp_path / "o.yaml"
+    path.write_text("anchors: {enabled: false, min_inliers: 12}\nmin_objects: 2\n")
+    names = ["openreloc", "nearest-frame"]
+    runs = method_runs(
+        names, [f"openreloc={path}"], False, ["openreloc:anchors.enabled=true", "nearest-frame:thumb_size=8"]
+    )
+    assert runs[0].overrides == {"anchors": {"enabled": True, "min_inliers": 12}, "min_objects": 2}
+    assert runs[1].overrides == {"thumb_size": 8}
+    for bad, message in (
+        ("anchors.enabled=true", "expects NAME:KEY=VALUE"),
+        ("openreloc:anchors", "expects NAME:KEY=VALUE"),
+        ("sift-pnp:ratio=0.7", "names 'sift-pnp', which is not in --methods"),
+    ):
+        with pytest.raises(ConfigError, match=message):
+            method_runs(names, [], False, [bad])

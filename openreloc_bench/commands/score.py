@@ -7,7 +7,8 @@ tz`` with (q, t) of T_cw, optionally followed by map-free's confidence (kept in 
 as ``export colmap`` lists them). Queries without a line count as failures; duplicate names, NaNs,
 non-unit quaternions, names of another style, files naming no scene under --data and a scene given
 in two layouts are errors. Tables (CSV + JSON) are written
-to --out, in the layout ``eval`` writes, for ``leaderboard``.
+to --out, in the layout ``eval`` writes, for ``leaderboard``; ``--check`` only validates the files and
+counts their poses (map-free's validator), writing nothing.
 """
 
 from __future__ import annotations
@@ -55,6 +56,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         type=Path,
         help="where tables go (default: ./<SUBMISSION_DIR name>-scores; never inside the submission or the data)",
     )
+    p.add_argument(
+        "--check",
+        action="store_true",
+        help="only validate the pose files (names, layout, numbers) and count their poses; score and write nothing",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -69,6 +75,8 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError("--splits names no split")
     if "mapping" in splits:
         raise ConfigError("--splits: 'mapping' built the maps; scoring poses of its own frames measures nothing")
+    if args.check:
+        return _check(args, scenes, splits)
     name = args.submission.resolve().name
     out = args.out or Path(f"{name}-scores")
     paths.check_output(out, [args.submission, *(args.data / s for s in scenes)], "--out")
@@ -85,4 +93,15 @@ def run(args: argparse.Namespace) -> int:
         print(f"{len(missing)} of {len(queries)} queries have no estimate (counted as failures)")
     print(tables.compact(suite))
     print(f"tables: {out / 'tables'}")
+    return 0
+
+
+def _check(args: argparse.Namespace, scenes: list[str], splits: list[str]) -> int:
+    """``--check``: every file read as scoring would read it, the poses counted; exit 0 when all parse."""
+    found = score.check_submission(args.submission, args.data, scenes, splits, args.names)
+    for scene, split, poses, queries in found:
+        print(f"{scene} {split}: {poses} of {queries} queries have a pose")
+    poses, queries = sum(f[2] for f in found), sum(f[3] for f in found)
+    missing = f"; the other {queries - poses} count as failures" if poses < queries else ""
+    print(f"valid: {poses} poses for {queries} queries in {len(scenes)} scene(s){missing}")
     return 0

@@ -229,6 +229,24 @@ def _scene_of_file(stem: str, data: Path) -> str:
     return stem
 
 
+def check_submission(
+    submission: Path, data: Path, scenes: list[str], splits: list[str], names: str = "benchmark"
+) -> list[tuple[str, str, int, int]]:
+    """``(scene, split, poses, queries)`` for each scene and split a submission is read for, checking its
+    files as :func:`score_submission` reads them (a malformed file is a DataError) without scoring: no
+    ground truth is read, nothing is written (map-free's validator)."""
+    if not submission.is_dir():
+        raise DataError(submission, "submission directory not found")
+    found = []
+    for name in scenes:
+        scene = Scene(data / name)
+        for split in splits:
+            seq = scene.sequence(split)
+            outcomes = submission_outcomes(submission, name, seq, scene.splits(), names) or {}
+            found.append((name, split, len(outcomes), len(seq)))
+    return found
+
+
 def score_submission(
     submission: Path,
     data: Path,

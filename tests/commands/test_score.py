@@ -62,11 +62,27 @@ def test_scores_both_layouts_and_counts_missing_queries_as_failures(
         ("query/000000 1 0 0", "expected 'name qw qx qy qz tx ty tz [confidence]'"),
     ],
 )
-def test_malformed_pose_files_are_one_line_errors(data: Path, tmp_path: Path, capsys, line: str, message: str) -> None:
+@pytest.mark.parametrize("check", [[], ["--check"]])
+def test_malformed_pose_files_are_one_line_errors(
+    data: Path, tmp_path: Path, capsys, line: str, message: str, check: list[str]
+) -> None:
     (tmp_path / "s1.txt").write_text(RESULTS_HEADER + "\n" + line + "\n")
-    assert main(["score", str(tmp_path), "--data", str(data)]) == 2
+    assert main(["score", str(tmp_path), "--data", str(data), *check]) == 2
     err = capsys.readouterr().err.strip()
     assert message in err and len(err.splitlines()) == 1
+
+
+def test_check_validates_and_counts_without_scoring(data: Path, tmp_path: Path, capsys, monkeypatch) -> None:
+    sub = tmp_path / "mysub"
+    est = estimates(data, "query", 0.3)
+    del est["query/000003"]
+    write_results(sub / "s1.txt", est)
+    monkeypatch.chdir(tmp_path)
+    assert main(["score", str(sub), "--data", str(data), "--check"]) == 0
+    out = capsys.readouterr().out
+    assert "s1 query: 3 of 4 queries have a pose" in out
+    assert "valid: 3 poses for 4 queries in 1 scene(s); the other 1 count as failures" in out
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["mysub"]  # nothing written
 
 
 def test_submission_without_any_scene_file(data: Path, tmp_path: Path, capsys) -> None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import re
 from pathlib import Path
 
@@ -42,6 +43,9 @@ def test_the_example_runs_beside_a_baseline_in_worker_processes(hist_nn: Path, c
     assert "hist-nn mask-free query" in out and "6 of 6 localized; 0 errors" in out
     q = pd.read_csv(hist_nn / "results" / "tables" / "queries.csv")
     assert set(q.loc[q["method"] == "hist-nn", "track"]) == {"mask-free"}
+    done = {p.parts[-4]: json.loads(p.read_text()) for p in (hist_nn / "results" / "runs").glob("*/*/*/*.done.json")}
+    assert done["hist-nn"]["method_source"].startswith(f"hist_nn:HistNN in {(hist_nn / 'hist_nn.py').resolve()}")
+    assert done["nearest-frame"]["method_source"] == "baselines.nearest_frame:NearestFrame"  # the project's own
 
 
 def test_the_example_reads_its_settings_and_fails_with_a_reason(hist_nn: Path, capsys: pytest.CaptureFixture) -> None:

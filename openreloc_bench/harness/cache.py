@@ -53,6 +53,14 @@ def foreign_code(method: Relocalizer) -> str | None:
     return hashlib.sha256(source.read_bytes()).hexdigest()[:12] if source is not None else None
 
 
+def method_source(method: Relocalizer) -> str:
+    """Where ``method``'s code came from, as its results record it: its class and, for a method from
+    outside this project, the file defining it and that file's hash (:func:`foreign_code`)."""
+    name = f"{type(method).__module__}:{type(method).__qualname__}"
+    source = foreign_source(type(method))
+    return name if source is None else f"{name} in {source} (sha256 {foreign_code(method)})"
+
+
 def map_folder(root: Path, name: str, key: str, scene_key: str) -> Path:
     """Where a results or cache folder ``root`` keeps the map of method ``name`` with map key ``key``
     (:func:`map_key`) of a scene: ``maps/<name>/<key>/<scene key>``, confined to ``root/maps`` whatever a

@@ -121,6 +121,7 @@ def list_jobs(cfg: EvalConfig) -> tuple[list[MapJob], list[QueryJob]]:
         chash = cache.config_hash(mcfg)
         track = recorded_track(method, cfg.track)  # also which masks the map is built from
         map_hash = cache.map_key(method, track)
+        source = cache.method_source(method)
         for name, scene in scenes.items():
             spec = scene.spec_hash
             map_dir = cache.map_folder(cfg.out, run.method, map_hash, name)  # rebuilt (removed first) when stale
@@ -129,6 +130,7 @@ def list_jobs(cfg: EvalConfig) -> tuple[list[MapJob], list[QueryJob]]:
                 "variant": run.variant or run.label,
                 "seed": run.seed,
                 "registry_name": run.method,
+                "method_source": source,
                 "method_config": mcfg,
                 "config_hash": chash,
                 "map_hash": map_hash,

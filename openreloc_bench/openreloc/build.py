@@ -39,7 +39,12 @@ from openreloc_bench.reconstruction.affinity_grouping import lift_by_affinity
 from openreloc_bench.reconstruction.fusion import FusionConfig, Reconstruction, fuse_tsdf
 from openreloc_bench.reconstruction.gravity import estimate_up, levelling
 from openreloc_bench.reconstruction.instance_repair import repair_instances
-from openreloc_bench.reconstruction.lifting import InstanceConfig, instance_sets, lift_by_clustering, lift_by_voting
+from openreloc_bench.reconstruction.lifting import (
+    GroupedInstanceConfig,
+    instance_sets,
+    lift_by_clustering,
+    lift_by_voting,
+)
 from openreloc_bench.reconstruction.observation import FrameObservation, ObservationConfig, observe
 from openreloc_bench.vision.base import ImageTextEncoder, Segmenter
 
@@ -62,7 +67,7 @@ class MappingConfig:
     """Seed of the point subsampling."""
     fusion: FusionConfig = field(default_factory=FusionConfig)
     observation: ObservationConfig = field(default_factory=ObservationConfig)
-    instances: InstanceConfig = field(default_factory=InstanceConfig)
+    instances: GroupedInstanceConfig = field(default_factory=GroupedInstanceConfig)
     reference_frames: ReferenceFrameConfig = field(default_factory=ReferenceFrameConfig)
     descriptors: DescriptorConfig = field(default_factory=DescriptorConfig)
     filtering: FilterConfig = field(default_factory=FilterConfig)

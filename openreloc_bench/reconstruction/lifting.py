@@ -12,7 +12,9 @@ Segmentation"), from what each frame sees of it (:mod:`.observation`):
   masks detect in most of its frames (drops what dilated masks took from the background).
   All consensus counts are sparse-matrix products (masks x points incidence), not Python loops;
 - affinity grouping of a segmenter's masks (:mod:`.affinity_grouping`) and the repair of its
-  instances (:mod:`.instance_repair`), configured here too (:class:`InstanceConfig`).
+  instances (:mod:`.instance_repair`), configured here too (:class:`GroupedInstanceConfig`; a method
+  that lifts by voting and clustering only takes :class:`InstanceConfig`, and offers no setting it
+  would not read).
 """
 
 from __future__ import annotations
@@ -100,10 +102,22 @@ class ClusteringConfig:
 
 @dataclass
 class InstanceConfig:
-    """Turning labelled scene points into landmarks."""
+    """Turning labelled scene points into landmarks: what every lifting reads."""
 
     min_points: int = 20
     """Instances with fewer scene points are dropped."""
+    voting: VotingConfig = field(default_factory=VotingConfig)
+    clustering: ClusteringConfig = field(default_factory=ClusteringConfig)
+
+    def __post_init__(self) -> None:
+        check_ranges(self, non_negative=("min_points",))
+
+
+@dataclass
+class GroupedInstanceConfig(InstanceConfig):
+    """:class:`InstanceConfig` with the choice of how a segmenter's masks are grouped, the repair of the
+    grouped instances, and the ground truth they are scored against (OpenReLoc's mapping)."""
+
     gt_box_margin: float = 0.03
     """Ground truth for the instance precision/recall: points within this distance (m) of an object's
     box in ``objects.json`` (see :func:`box_point_labels`); ~1.5 fusion voxels absorbs surface noise."""
@@ -112,14 +126,13 @@ class InstanceConfig:
     the views' masks, :mod:`affinity_grouping`; needs the dense views of a walk-through) or
     'clustering' (view consensus of whole masks, :func:`lift_by_clustering`; best with
     ``repair.fill``)."""
-    voting: VotingConfig = field(default_factory=VotingConfig)
-    clustering: ClusteringConfig = field(default_factory=ClusteringConfig)
     affinity: AffinityConfig = field(default_factory=AffinityConfig)
     repair: RepairConfig = field(default_factory=RepairConfig)
     """Fill and merge of the grouped instances (segmenter masks only)."""
 
     def __post_init__(self) -> None:
-        check_ranges(self, non_negative=("min_points", "gt_box_margin"))
+        super().__post_init__()
+        check_ranges(self, non_negative=("gt_box_margin",))
 
     @property
     def min_mask_points(self) -> int:

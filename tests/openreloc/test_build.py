@@ -12,7 +12,7 @@ from openreloc_bench.errors import ConfigError
 from openreloc_bench.openreloc.build import MappingConfig, build_object_map
 from openreloc_bench.openreloc.map import ObjectMap
 from openreloc_bench.reconstruction.fusion import FusionConfig
-from openreloc_bench.reconstruction.lifting import InstanceConfig
+from openreloc_bench.reconstruction.lifting import GroupedInstanceConfig
 from tests.openreloc.boxworld import MeanColorEncoder, NoisyMaskSegmenter, boxworld_sequence
 
 CFG = MappingConfig(fusion=FusionConfig(voxel_size=0.05))
@@ -51,7 +51,7 @@ def test_oracle_map(seq, tmp_path: Path) -> None:
 
 
 def test_segmenter_map_by_clustering_and_fill(seq) -> None:
-    instances = InstanceConfig(grouping="clustering")
+    instances = GroupedInstanceConfig(grouping="clustering")
     instances.repair.fill = True
     cfg = MappingConfig(fusion=CFG.fusion, instances=instances)
     m = build_object_map(seq, cfg, MeanColorEncoder(), NoisyMaskSegmenter(split_prob=0.0), progress=False)
@@ -67,7 +67,7 @@ def test_no_masks_and_no_segmenter(seq) -> None:
 
 
 def test_segmenter_map_by_affinity_grouping(seq) -> None:
-    instances = InstanceConfig(grouping="affinity")
+    instances = GroupedInstanceConfig(grouping="affinity")
     instances.affinity.min_region_area = 0.05  # 20 points of the 5 cm grid
     cfg = MappingConfig(fusion=CFG.fusion, instances=instances)
     m = build_object_map(seq, cfg, MeanColorEncoder(), NoisyMaskSegmenter(split_prob=0.0), progress=False)

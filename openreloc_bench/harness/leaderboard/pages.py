@@ -11,6 +11,7 @@ import pandas as pd
 from openreloc_bench.harness.ablations import ABLATED_METHOD
 from openreloc_bench.harness.leaderboard.rows import (
     BOARD_COLUMNS,
+    HEADLINE_SPLIT,
     ROBUSTNESS_TITLE,
     TRACK_TITLES,
     board_cell,
@@ -124,12 +125,37 @@ document.querySelectorAll('table.sortable th').forEach((th, i) => th.addEventLis
 
 def _html_table(title: str, head: list[str], rows: list[list[str]]) -> str:
     """A titled, sortable, horizontally scrolling table."""
+    return f"<h2>{html.escape(title)}</h2>\n{_sortable(head, rows)}"
+
+
+def _sortable(head: list[str], rows: list[list[str]]) -> str:
     cells = "".join("<tr>" + "".join(f"<td>{html.escape(str(v))}</td>" for v in r) + "</tr>" for r in rows)
     heads = "".join(f"<th>{html.escape(h)}</th>" for h in head)
-    return (
-        f"<h2>{html.escape(title)}</h2>\n"
-        f'<div class="scroll"><table class="sortable"><thead><tr>{heads}</tr></thead><tbody>{cells}</tbody></table></div>\n'
-    )
+    return f'<div class="scroll"><table class="sortable"><thead><tr>{heads}</tr></thead><tbody>{cells}</tbody></table></div>\n'
+
+
+def _track_table(title: str, head: list[str], t: pd.DataFrame, shown: list[str]) -> str:
+    """A track's table: the headline split's rows, the other splits' folded under them."""
+    rows = {
+        headline: [[board_cell(r, c) for c in shown] for _, r in part.iterrows()]
+        for headline, part in t.groupby(t["split"] == HEADLINE_SPLIT)
+    }
+    text = f"<h2>{html.escape(title)}</h2>\n"
+    if True in rows:
+        text += _sortable(head, rows[True])
+    if False in rows:
+        text += f"<details><summary>The other splits ({len(rows[False])} rows)</summary>\n{_sortable(head, rows[False])}</details>\n"
+    return text
+
+
+WIDE_PLOTS = ("recall_per_scene", "topdown_")
+"""Plots as wide as the page: a bar group per scene, a panel per split."""
+
+
+def _figure(path: str, wide: bool) -> str:
+    """A plot that opens at full size when clicked."""
+    p = html.escape(path)
+    return f'<figure><a href="{p}"><img{" class=wide" if wide else ""} src="{p}" alt="{p}"></a></figure>'
 
 
 def to_html(
@@ -142,23 +168,17 @@ def to_html(
     ablations: Sequence[str] = (),
 ) -> str:
     """The sortable page: the board's verdict, links to the data's ``card`` and the ``ablations`` tables,
-    its tables, the robustness table (``drops``), ``plots`` side by side and the recall-vs-difficulty
+    its tables (the headline split's rows first, the others folded), the robustness table (``drops``), ``plots`` side by side and the recall-vs-difficulty
     plots full width."""
     shown = shown_columns(b)
     head = [BOARD_COLUMNS[c] for c in shown]
-    tables = "".join(
-        _html_table(title, head, [[board_cell(r, c) for c in shown] for _, r in t.iterrows()])
-        for title, t in _by_track(b)
-    )
+    tables = "".join(_track_table(title, head, t, shown) for title, t in _by_track(b))
     if drops is not None and not drops.empty:
         tables += _html_table(ROBUSTNESS_TITLE, list(drops.columns), drops.values.tolist())
-    imgs = "".join(f'<figure><img src="{html.escape(p)}" alt="{html.escape(p)}"></figure>' for p in plots)
+    imgs = "".join(_figure(p, wide=Path(p).name.startswith(WIDE_PLOTS)) for p in plots)
     if difficulty_plots:
         imgs += f'<h2 class="clear">Recall vs difficulty</h2>\n<p>{html.escape(DIFFICULTY_TEXT)}</p>\n'
-        imgs += "".join(
-            f'<figure><img class="wide" src="{html.escape(p)}" alt="{html.escape(p)}"></figure>'
-            for p in difficulty_plots
-        )
+        imgs += "".join(_figure(p, wide=True) for p in difficulty_plots)
     card_link = f' The data: <a href="{html.escape(card)}">its dataset card</a>.' if card else ""
     card_link += "".join(
         f' Ablations of {ABLATED_METHOD}, {html.escape(t)} track: <a href="{html.escape(p)}">{html.escape(p)}</a>.'

@@ -30,6 +30,7 @@ from openreloc_bench.harness.leaderboard.rows import (  # noqa: E402
     track_rank,
 )
 from openreloc_bench.harness.metrics import cumulative_curve  # noqa: E402
+from openreloc_bench.methods import available_methods  # noqa: E402
 from openreloc_bench.tracks import MASK_FREE  # noqa: E402
 
 log = logging.getLogger(__name__)
@@ -38,7 +39,7 @@ log = logging.getLogger(__name__)
 def _save(fig: plt.Figure, path: Path) -> None:
     if fig.get_layout_engine() is None:  # a figure made with layout="constrained" keeps it
         fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=110, bbox_inches="tight")  # legends placed beside the axes stay in the picture
     plt.close(fig)
 
 
@@ -49,10 +50,13 @@ TRACK_HATCHES = {"predicted": "", "oracle-mask": "///", MASK_FREE: ".."}
 
 
 def method_colors(methods: Iterable[str]) -> dict[str, tuple[float, ...]]:
-    """One colour per method (by name), the same in each plot of a board: tab10's, then tab20b's, so that
-    a board of the whole plan (nine methods and openreloc's ablation variants) repeats none."""
+    """One colour per method (by name), the same in every plot of every board: tab10's, then tab20b's, in
+    the order of the registered methods' names (those of ``methods`` no method is registered under after
+    them), so that a method keeps its colour whichever others a board shows."""
     palette = [*plt.get_cmap("tab10").colors, *plt.get_cmap("tab20b").colors]
-    return {m: palette[k % len(palette)] for k, m in enumerate(sorted(set(methods)))}
+    registered = sorted(available_methods())
+    order = registered + sorted(set(methods) - set(registered))
+    return {m: palette[order.index(m) % len(palette)] for m in set(methods)}
 
 
 def plot_cumulative(
@@ -69,7 +73,7 @@ def plot_cumulative(
         ax.plot(grid, curve, TRACK_LINES.get(track, ":"), color=colors[method], label=f"{method} ({track})")
     ax.set(xlabel=xlabel, ylabel="queries [%]", ylim=(0, 100), xlim=(0, xmax), title=f"Cumulative {xlabel}")
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=7 if s.groupby(["method", "track"]).ngroups > 6 else 8)
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))  # beside the curves, never on them
     _save(fig, path)
     return ax
 
@@ -91,7 +95,7 @@ def plot_scene_recall(scenes: pd.DataFrame, path: Path, colors: dict[str, Any] |
         ax.bar(x + k * width, g["recall_25cm"], width, label=f"{method} ({track})", **look)
     ax.set_xticks(x + width * (len(runs) - 1) / 2, names, rotation=30, ha="right")
     ax.set(ylabel="recall [%]  (light @50cm, dark @25cm)", ylim=(0, 100), title="Recall per scene")
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))  # beside the bars, never on them
     _save(fig, path)
     return ax
 

@@ -68,6 +68,12 @@ def test_boards_print_recalls_with_their_intervals_and_the_fields_thresholds(tmp
     write_leaderboard([results_dir(tmp_path / "r", "m")], out)
     md = (out / "leaderboard.md").read_text()
     page = (out / "index.html").read_text()
+    # every plot opens at full size; the per-scene bars are as wide as the page
+    assert '<a href="plots/cumulative_translation.png"><img src=' in page
+    assert '<a href="plots/recall_per_scene.png"><img class=wide src=' in page
+    headline, folded = page.split("<details><summary>The other splits (", 1)  # the query split's rows first
+    assert "<td>query</td>" in headline.split("<h2>")[-1] and "<td>query_light1</td>" not in headline
+    assert "<td>query_light1</td>" in folded.split("</details>")[0]
     for column in ("R@50cm [%]", "R@5cm,5° [%]", "R@10cm,10° [%]", "VCRE<90px [%]"):
         assert column in md and html.escape(column) in page
     assert "recall_50cm_lo" not in md  # the bounds are printed in their recall's cell, not as columns

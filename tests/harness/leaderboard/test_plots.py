@@ -79,7 +79,11 @@ def test_every_plot_of_a_board_draws_every_method(tmp_path: Path) -> None:
 
 def test_each_method_keeps_one_colour_and_a_whole_plan_repeats_none() -> None:
     colors = method_colors(["b", "a", "b"])
-    assert list(colors) == ["a", "b"] and colors["a"] != colors["b"]
+    assert sorted(colors) == ["a", "b"] and colors["a"] != colors["b"]
+    # a method's colour does not depend on which others a board shows
+    one = method_colors(["openreloc", "nearest-frame"])
+    other = method_colors(["sift-pnp", "posenet", "openreloc", "my-plugin"])
+    assert one["openreloc"] == other["openreloc"] and one["nearest-frame"] not in other.values()
     plan = ["openreloc", "openreloc-paper", "goreloc", "sift-pnp", "orb-reloc", "retrieval", "posenet", "nearest-frame",
             "openreloc-oracle-association", *ABLATIONS]  # fmt: skip
     assert len(set(method_colors(plan).values())) == len(plan)

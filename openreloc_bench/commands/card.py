@@ -32,7 +32,7 @@ def run(args: argparse.Namespace) -> int:
     from openreloc_bench.data import paths
     from openreloc_bench.harness.card import write_card  # matplotlib: only when used
 
-    paths.check_output(args.out, [args.data], "--out")
+    paths.check_output(args.out, [args.data], "--out", fills=True)
     files = write_card(args.suite, args.data, args.out)
     print(files[0])
     print(f"wrote {len(files) - 1} pictures to {files[0].with_suffix('')}")

@@ -63,6 +63,7 @@ def run(args: argparse.Namespace) -> int:
     segmenter = create_segmenter(method_cfg.segmenter, **method_cfg.segmenter_options)
     data = args.data or args.out / "scenes"
     config = method_cfg.mapping
+    paths.check_output(args.out, [], "--out", fills=True)  # neither in nor a scene or map
     with paths.directory_lock(args.out, "openreloc-bench train-merger"):
         train_dirs, eval_dirs, _ = training_scene_sets(
             data, MERGER_DATA, args.seed, args.scenes, args.eval_scenes, 640, 480, args.workers

@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from openreloc_bench.data import paths
 from openreloc_bench.errors import ConfigError
 
 NAME = "train-segmenter"
@@ -96,6 +97,7 @@ def run(args: argparse.Namespace) -> int:
          "max_seconds": 60.0 * args.max_minutes},
         "train-segmenter",
     )  # fmt: skip
+    paths.check_output(args.out, [], "--out", fills=True)  # neither in nor a scene or map
     training_device(args.device)  # refuse a missing GPU before reading weights or generating anything
     net = load_weights(args.init)[1] if args.init else NetConfig()
     try:

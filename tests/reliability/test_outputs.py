@@ -4,12 +4,15 @@ never inside them, and a map directory holds one map (a previous one is replaced
 from __future__ import annotations
 
 import contextlib
+from pathlib import Path
 
 import pandas as pd
 import pytest
 
 from openreloc_bench.data import mapfile
 from tests.reliability.conftest import World, checksums, one_line_error, run
+
+REPO = Path(__file__).resolve().parents[2]
 
 
 def test_a_map_replaces_a_previous_map_of_another_method_whole(world: World, capsys) -> None:
@@ -131,6 +134,17 @@ def test_no_output_lands_inside_another_scene_or_a_map(world: World, capsys) -> 
         (["train-encoder", "--out", str(other / "w")], "lies inside the scene"),
         (["train-encoder", "--out", str(world.map_dir)], "is the map"),
         (["train-encoder", "--out", str(other)], "is the scene"),
+        (["train-segmenter", "--out", str(world.map_dir)], "is the map"),
+        (["train-merger", "--out", str(other / "w")], "lies inside the scene"),
+        (
+            ["card", str(REPO / "scenes" / "smoke.yaml"), "--data", str(world.tmp / "d"), "--out", str(world.map_dir)],
+            "is the map",
+        ),
+        (
+            ["campaign", str(REPO / "leaderboard" / "plan.yaml"), "--data", str(world.data), "--work", str(other)],
+            "is the scene",
+        ),
+        (["diagnose", "--scenes", str(world.scene), "--work", str(world.map_dir)], "is the map"),
     ):
         code, _, err = run(argv, capsys)
         one_line_error(code, err, argv[0], where)

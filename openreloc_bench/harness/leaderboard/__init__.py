@@ -47,7 +47,7 @@ def write_leaderboard(results: list[Path], out: Path, data: Path | None = None, 
     data's dataset card (``openreloc-bench card``), which the pages link."""
     q = recorded_tracks(pool_seeds(load_queries(results)))  # pooled first: seeded runs carry the method's name
     for r in results:
-        paths.check_output(out, [r], "--out")
+        paths.check_output(out, [r], "--out", fills=True)
     _check_not_foreign_pages(out)
     scenes, suite = build_tables(q, load_maps(results))
     # The csv keeps every row; pages and plots compare methods, and a method's ablation variants, parts of

@@ -56,3 +56,15 @@ def test_show_map_has_a_category_legend(tmp_path: Path) -> None:
     ]
     labels = [t.get_text() for t in ax.texts]
     assert labels[0] == "1:cat1" and len(labels) == 5  # landmarks a metre apart: every label fits
+
+
+def test_a_predicted_maps_landmarks_are_told_apart_by_id(tmp_path: Path) -> None:
+    m = make_map()
+    for lm in m.landmarks.values():
+        lm.category = None  # a segmenter's landmarks carry no ground-truth category
+    ax = draw_map(m, tmp_path / "m.png")
+    legend = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert legend[0] == "landmarks, coloured by id (a predicted map names no category) (4)"
+    assert not any(t.startswith("no category") for t in legend)
+    colours = {tuple(c.get_facecolor()[0][:3]) for c in ax.collections[:5] if len(c.get_offsets())}
+    assert len(colours) >= 4  # four valid landmarks, four colours (the filtered one grey)

@@ -59,8 +59,9 @@ class AnchorBuildConfig:
     """A keypoint belongs to a landmark when one of the landmark's scene points lies this close (m)."""
     voxel: float = 0.05
     """Side (m) of the cells in which a landmark's keypoints are thinned."""
-    per_voxel: int = 1
-    """Points kept per cell, those seen in the most mapping frames first."""
+    per_voxel: int = 4
+    """Points kept per cell, those seen in the most mapping frames first (one a cell lost a third of a
+    real recording's queries)."""
     same_point: float = 0.3
     """RootSIFT distance under which two keypoints of a cell count as views of one point."""
     descriptor_bytes: int = 32

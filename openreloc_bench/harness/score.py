@@ -6,6 +6,7 @@ Used by the evaluation runner (estimates come from a method) and by ``openreloc-
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -235,16 +236,23 @@ def check_submission(
     """``(scene, split, poses, queries)`` for each scene and split a submission is read for, checking its
     files as :func:`score_submission` reads them (a malformed file is a DataError) without scoring: no
     ground truth is read, nothing is written (map-free's validator)."""
+    return [
+        (scene.name, seq.split, len(outcomes), len(seq))
+        for scene, seq, outcomes in _submitted(submission, data, scenes, splits, names)
+    ]
+
+
+def _submitted(
+    submission: Path, data: Path, scenes: list[str], splits: list[str], names: str
+) -> Iterator[tuple[Scene, SceneSequence, dict[str, Outcome]]]:
+    """Each scene and split with the estimates the submission holds for it (none where it has no file)."""
     if not submission.is_dir():
         raise DataError(submission, "submission directory not found")
-    found = []
     for name in scenes:
         scene = Scene(data / name)
         for split in splits:
             seq = scene.sequence(split)
-            outcomes = submission_outcomes(submission, name, seq, scene.splits(), names) or {}
-            found.append((name, split, len(outcomes), len(seq)))
-    return found
+            yield scene, seq, submission_outcomes(submission, name, seq, scene.splits(), names) or {}
 
 
 def score_submission(
@@ -264,28 +272,21 @@ def score_submission(
     """
     from openreloc_bench.harness.cache import git_commit
 
-    if not submission.is_dir():
-        raise DataError(submission, "submission directory not found")
     frames = []
-    for name in scenes:
-        scene = Scene(data / name)
-        for split in splits:
-            seq = scene.sequence(split)
-            outcomes = submission_outcomes(submission, name, seq, scene.splits(), names) or {}
-            df = score_split(seq, outcomes)
-            df = with_difficulty(df, scene, split)
-            meta = {
-                "method": method,
-                "track": track,
-                "scene": name,
-                "split": split,
-                "config_hash": "submission",
-                "map_hash": "submission",
-                "spec_hash": scene.spec_hash,
-                "git_commit": git_commit(),
-            }
-            for i, (k, v) in enumerate(meta.items()):
-                df.insert(i, k, v)
-            df["uses_masks"] = track != MASK_FREE  # the track as the submitter declared it
-            frames.append(df)
+    for scene, seq, outcomes in _submitted(submission, data, scenes, splits, names):
+        df = with_difficulty(score_split(seq, outcomes), scene, seq.split)
+        meta = {
+            "method": method,
+            "track": track,
+            "scene": scene.name,
+            "split": seq.split,
+            "config_hash": "submission",
+            "map_hash": "submission",
+            "spec_hash": scene.spec_hash,
+            "git_commit": git_commit(),
+        }
+        for i, (k, v) in enumerate(meta.items()):
+            df.insert(i, k, v)
+        df["uses_masks"] = track != MASK_FREE  # the track as the submitter declared it
+        frames.append(df)
     return pd.concat(frames, ignore_index=True)

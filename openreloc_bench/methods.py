@@ -247,7 +247,7 @@ def _check_settings(name: str, method: Any, settings: dict[str, Any]) -> None:
     (nothing to check without one)."""
     cfg = getattr(method, "config", None)
     if settings and is_dataclass(cfg) and not isinstance(cfg, type):
-        cfglib.from_dict(type(cfg), settings, f"method '{name}'")
+        cfglib.from_dict(type(cfg), settings, name)
 
 
 PROJECT_PACKAGES = ("openreloc_bench", "baselines")

@@ -61,8 +61,8 @@ def test_the_example_reads_its_settings_and_fails_with_a_reason(hist_nn: Path, c
 @pytest.mark.parametrize(
     ("argv", "message"),
     [
-        (["config", "hist-nn", "--set", "bin=8"], r"unknown key 'method 'hist-nn'\.bin' \(known: bins, max_distance\)"),
-        (["config", "hist-nn", "--set", "bins=abc"], r"'method 'hist-nn'\.bins': expected an integer"),
+        (["config", "hist-nn", "--set", "bin=8"], r"unknown key 'hist-nn\.bin' \(known: bins, max_distance\)"),
+        (["config", "hist-nn", "--set", "bins=abc"], r"'hist-nn\.bins': expected an integer"),
         (["map", "--method", "hist-nn", "--scene", "data/tiny", "--out", "m", "--set", "bin=8"], r"unknown key"),
     ],
 )

@@ -67,6 +67,7 @@ class ImageRetrieval:
     """Global-descriptor retrieval with best-frame or interpolated poses (see the module doc)."""
 
     name = "retrieval"
+    reference = "Torii et al., 24/7 Place Recognition by View Synthesis (DenseVLAD), CVPR 2015"
     uses_masks = False
     """Query instance masks (oracle-mask track) are never read."""
 

@@ -41,6 +41,7 @@ class NearestFrame:
     """
 
     name = "nearest-frame"
+    reference = "the floor: the pose of the most similar mapping thumbnail (no paper)"
     uses_masks = False
     """Never reads a mask: its maps and results serve both tracks."""
     map_format = ("nearest-frame-map", 1)

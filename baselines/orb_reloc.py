@@ -131,6 +131,7 @@ class OrbReloc:
     """ORB-SLAM2's relocalization (see the module doc)."""
 
     name = "orb-reloc"
+    reference = "Mur-Artal and Tardos, ORB-SLAM2, T-RO 2017 (its relocalization); https://github.com/raulmur/ORB_SLAM2"
     uses_masks = False
     """Query instance masks (oracle-mask track) are never read."""
 

@@ -158,6 +158,7 @@ class PoseNet:
     """A per-scene absolute pose regressor (see the module doc)."""
 
     name = "posenet"
+    reference = "Kendall, Grimes and Cipolla, PoseNet, ICCV 2015, with the learned loss weights of Kendall and Cipolla, CVPR 2017"
     uses_masks = False
     """Query instance masks (oracle-mask track) are never read."""
 

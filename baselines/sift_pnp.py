@@ -68,6 +68,7 @@ class SiftPnP:
     """SIFT + VLAD retrieval + ratio-test matching + pycolmap LO-RANSAC (see the module doc)."""
 
     name = "sift-pnp"
+    reference = "Sarlin et al., From Coarse to Fine: Robust Hierarchical Localization at Large Scale, CVPR 2019 (hloc), with SIFT; https://github.com/cvg/Hierarchical-Localization"
     uses_masks = False
     """Query instance masks (oracle-mask track) are never read."""
 

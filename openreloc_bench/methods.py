@@ -84,7 +84,8 @@ class Relocalizer(Protocol):
     ``map --set``; none for the defaults). Optional: ``config``, a dataclass of those settings (recorded
     with every result, printed by ``openreloc-bench config``); ``uses_masks = False``, declaring that the
     method reads no instance masks (it is then given none, and its results are recorded as
-    ``mask-free``, standing for both tracks); ``map_config()`` (see :func:`map_config`).
+    ``mask-free``, standing for both tracks); ``map_config()`` (see :func:`map_config`); ``reference``,
+    the paper and code the method follows (the boards cite it).
     """
 
     name: str
@@ -186,15 +187,26 @@ def _lazy(ep: Any) -> Callable[..., Relocalizer]:
     return factory
 
 
+def method_reference(name: str) -> str:
+    """The paper and code the registered method ``name`` follows (its class's ``reference``; "" when it
+    gives none, or for a name no method is registered under)."""
+    return str(getattr(_method_class(name), "reference", ""))
+
+
+def _method_class(name: str) -> Any:
+    """What ``name`` is registered as (in-process first, as :func:`available_methods`); None if nothing."""
+    if name in _REGISTRY:
+        return _REGISTRY[name]
+    for ep in entry_points(group=ENTRY_POINT_GROUP, name=name):
+        return ep.load()
+    return None
+
+
 def uses_masks(name: str) -> bool:
     """Whether the registered method ``name`` reads instance masks: its class's ``uses_masks``
     (True when it does not say, or for a name no method is registered under). The harness builds the
     maps of methods that do not from no masks, and they serve both tracks."""
-    if name in _REGISTRY:
-        return bool(getattr(_REGISTRY[name], "uses_masks", True))
-    for ep in entry_points(group=ENTRY_POINT_GROUP, name=name):
-        return bool(getattr(ep.load(), "uses_masks", True))
-    return True
+    return bool(getattr(_method_class(name), "uses_masks", True))
 
 
 def recorded_track(method: Relocalizer, track: Track) -> RecordedTrack:

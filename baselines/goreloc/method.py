@@ -98,6 +98,7 @@ class GOReloc:
     """GOReloc, registered as ``goreloc``."""
 
     name = "goreloc"
+    reference = "Wang, Jiang and Chen, GOReloc: Graph-based Object-Level Relocalization for Visual SLAM, RA-L 2024; https://github.com/yutongwangBIT/GOReloc"
 
     def __init__(self, **overrides: Any):
         self.config: GORelocConfig = cfglib.from_dict(GORelocConfig, overrides, "goreloc")

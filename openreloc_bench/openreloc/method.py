@@ -167,6 +167,7 @@ class OpenReLoc:
     """The OpenReLoc relocalizer (registered as ``openreloc``)."""
 
     name = "openreloc"
+    reference = "Cui et al., OpenReLoc: Compact Object-Level Representations with Open-Vocabulary Understanding for Indoor Visual Relocalization, arXiv:2606.24767, with this project's additions (README)"
 
     def __init__(self, **overrides: Any):
         self.config: OpenReLocConfig = cfglib.from_dict(OpenReLocConfig, overrides, "openreloc")
@@ -690,6 +691,7 @@ class OpenReLocOracleAssociation(OpenReLoc):
     association. Not a relocalization method in its own right."""
 
     name = "openreloc-oracle-association"
+    reference = "a diagnostic: openreloc given the true landmark association (an upper bound of what follows it)"
 
     def __init__(self, **overrides: Any):
         association = {**(overrides.pop("association", None) or {}), "oracle": True}

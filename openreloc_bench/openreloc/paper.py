@@ -56,6 +56,7 @@ class OpenReLocPaper(OpenReLoc):
     """OpenReLoc with every stage beyond the paper switched off (registered as ``openreloc-paper``)."""
 
     name = "openreloc-paper"
+    reference = "Cui et al., OpenReLoc: Compact Object-Level Representations with Open-Vocabulary Understanding for Indoor Visual Relocalization, arXiv:2606.24767: the paper's pipeline alone"
 
     def __init__(self, **overrides: Any):
         super().__init__(**cfglib.merge(PAPER_CONFIG, overrides))

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import html
+import re
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -23,6 +24,7 @@ from openreloc_bench.harness.leaderboard.rows import (
 )
 from openreloc_bench.harness.leaderboard.verdict import verdict, verdict_lead
 from openreloc_bench.harness.tables import md_table, paper_table
+from openreloc_bench.methods import method_reference
 from openreloc_bench.tracks import MASK_FREE
 
 
@@ -107,7 +109,23 @@ def to_markdown(
     if difficulty_plots:
         lines += ["", "## Recall vs difficulty", "", DIFFICULTY_TEXT, ""]
         lines += [f"![recall vs difficulty]({p})" for p in difficulty_plots]
+    lines += ["", "## Methods", "", *md_table(["Method", "Paper and code"], method_references(b))]
     return "\n".join(lines) + "\n"
+
+
+def method_references(b: pd.DataFrame) -> list[list[str]]:
+    """``[method, the paper and code it follows]`` for each method of the board (:func:`method_reference`)."""
+    return [[m, method_reference(m) or "-"] for m in sorted(set(b["method"]))]
+
+
+_URL = re.compile(r"https?://\S+")
+
+
+def _linked(text: str) -> str:
+    """``text`` escaped for HTML, its web addresses as links."""
+    parts = _URL.split(text)
+    links = [f'<a href="{html.escape(u)}">{html.escape(u)}</a>' for u in _URL.findall(text)]
+    return "".join(html.escape(p) + (links[k] if k < len(links) else "") for k, p in enumerate(parts))
 
 
 _SORT_JS = """
@@ -179,6 +197,8 @@ def to_html(
     if difficulty_plots:
         imgs += f'<h2 class="clear">Recall vs difficulty</h2>\n<p>{html.escape(DIFFICULTY_TEXT)}</p>\n'
         imgs += "".join(_figure(p, wide=True) for p in difficulty_plots)
+    cited = "".join(f"<li><b>{html.escape(m)}</b>: {_linked(ref)}</li>" for m, ref in method_references(b))
+    imgs += f'<h2 class="clear">Methods</h2>\n<ul>{cited}</ul>\n'
     card_link = f' The data: <a href="{html.escape(card)}">its dataset card</a>.' if card else ""
     card_link += "".join(
         f' Ablations of {ABLATED_METHOD}, {html.escape(t)} track: <a href="{html.escape(p)}">{html.escape(p)}</a>.'

@@ -97,3 +97,13 @@ def test_a_board_is_not_written_over_pages_no_board_wrote(tmp_path: Path) -> Non
     board = tmp_path / "board"
     write_leaderboard([results], board)
     assert write_leaderboard([results], board)  # a board's own folder is rewritten
+
+
+def test_boards_cite_each_methods_paper_and_code(tmp_path: Path) -> None:
+    out = tmp_path / "board"
+    write_leaderboard([results_dir(tmp_path / "r", "sift-pnp"), results_dir(tmp_path / "u", "unknown-method")], out)
+    md, page = (out / "leaderboard.md").read_text(), (out / "index.html").read_text()
+    assert "## Methods" in md and "| sift-pnp | Sarlin et al., From Coarse to Fine" in md
+    assert "| unknown-method | - |" in md  # a name no method is registered under cites nothing
+    url = "https://github.com/cvg/Hierarchical-Localization"
+    assert f'<a href="{url}">{url}</a>' in page

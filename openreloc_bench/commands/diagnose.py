@@ -37,9 +37,11 @@ ORDER = 42
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     where = p.add_mutually_exclusive_group(required=True)
-    where.add_argument("--scenes", help="comma-separated scene directories")
+    where.add_argument(
+        "--scenes", help="comma-separated scene directories, or scene names under --data (as eval's --scenes)"
+    )
     where.add_argument("--suite", type=Path, help="suite YAML whose scenes lie under --data")
-    p.add_argument("--data", type=Path, help="dataset directory of --suite")
+    p.add_argument("--data", type=Path, help="dataset directory of --suite, or of --scenes given by name")
     add_track_argument(p, "predicted: the method's segmenter on map and queries; oracle-mask: the dataset's masks")
     p.add_argument("--splits", default="query", help="comma-separated query splits")
     p.add_argument("--frames", type=int, default=12, help="frames per split whose segmentation is scored")
@@ -106,7 +108,12 @@ def _scene_dirs(args: argparse.Namespace) -> list[Path]:
             raise ConfigError("--suite needs --data (the folder holding its generated scenes)")
         dirs = [args.data / n for n in suite_scene_names(args.suite)]
     else:
-        dirs = [Path(s) for s in args.scenes.split(",") if s]
+        # as eval's: a plain name is a scene under --data (where given), anything else a scene's path
+        dirs = [
+            args.data / s if args.data is not None and Path(s).name == s else Path(s)
+            for s in args.scenes.split(",")
+            if s
+        ]
         seen = [d.resolve() for d in dirs]
         twice = next((d for k, d in enumerate(dirs) if seen[k] in seen[:k]), None)
         if twice is not None:

@@ -1,5 +1,6 @@
 from __future__ import annotations
 
+import argparse
 import json
 import shutil
 from pathlib import Path
@@ -137,3 +138,15 @@ def test_diagnose_refuses_what_a_recording_cannot_give(
     assert main(["diagnose", "--scenes", str(recording), "--work", str(tmp_path / "w"), *extra]) == 2
     err = capsys.readouterr().err
     assert message in err and "Traceback" not in err
+
+
+def test_diagnose_takes_scene_names_under_data_as_eval_does(tmp_path: Path) -> None:
+    from openreloc_bench.commands.diagnose import _scene_dirs
+
+    for name in ("sA", "sB"):
+        (tmp_path / name).mkdir()
+        (tmp_path / name / "scene.json").write_text("{}")
+    args = argparse.Namespace(suite=None, data=tmp_path, scenes="sA,sB")
+    assert _scene_dirs(args) == [tmp_path / "sA", tmp_path / "sB"]
+    args = argparse.Namespace(suite=None, data=None, scenes=f"{tmp_path / 'sA'}")  # paths still work
+    assert _scene_dirs(args) == [tmp_path / "sA"]

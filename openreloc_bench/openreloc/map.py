@@ -228,9 +228,8 @@ class ObjectMap:
             )
         codec = DescriptorCodec(a["anchor_centroids"])
         parts, levels, width = codec.centroids.shape
-        anchors = Anchors(
-            a["anchor_xyz"].reshape(-1, 3), a["anchor_codes"].reshape(-1, parts), a["anchor_landmark"].ravel(), codec
-        )
+        xyz = a["anchor_xyz"].reshape(-1, 3)
+        anchors = Anchors(xyz, a["anchor_codes"].reshape(len(xyz), parts), a["anchor_landmark"].ravel(), codec)
         if not len(anchors.xyz) == len(anchors.codes) == len(anchors.landmark) or (
             parts and (levels != 256 or parts * width != DESCRIPTOR_SIZE)
         ):

@@ -69,7 +69,9 @@ def test_leaderboard_merges_eval_and_score_results(results: tuple[Path, Path], c
     assert lines[0].startswith("| test-oracle")  # sorted by Recall@25cm within (track, split)
     assert md.index("| outside | predicted |") < md.index("| test-oracle | oracle-mask |")  # score's default track
     assert "## Per scene: query" in md and "| outside | 100 / 0 |" in md
-    sizes = md.split("## Map size per scene [MB]")[1]  # the maps the eval built; a submission has none
+    sizes = md.split("## Map size per scene [MB]")[1].split("\n## ")[
+        0
+    ]  # the maps the eval built; a submission has none
     assert "| test-oracle | oracle-mask |" in sizes and "| nearest-frame | mask-free |" in sizes
     assert "outside" not in sizes and "| s1 | s2 |" in sizes
     page = (out / "index.html").read_text()

@@ -10,7 +10,7 @@ from baselines.nearest_frame import NearestFrame
 from openreloc_bench.cli import main
 from openreloc_bench.data import io, mapfile
 from openreloc_bench.data.scene import Scene
-from openreloc_bench.errors import ConfigError
+from openreloc_bench.errors import ConfigError, PluginError
 from openreloc_bench.harness import cache
 from openreloc_bench.harness.runner import EvalConfig, MethodRun, evaluate
 from openreloc_bench.methods import create_method
@@ -55,8 +55,8 @@ class Broken(NearestFrame):
 def test_a_failed_build_leaves_an_empty_folder_and_no_record(tmp_path: Path) -> None:
     scene = Scene(write_tiny_scene(tmp_path / "tiny"))
     map_dir = tmp_path / "maps" / "tiny"
-    with pytest.raises(RuntimeError, match="boom"):
-        cache.cached_map(Broken(), scene, PREDICTED, map_dir, {})
+    with pytest.raises(PluginError, match="build_map raised at test_cache.py line .*: RuntimeError: boom"):
+        cache.cached_map(Broken(), scene, PREDICTED, map_dir, {})  # a method from outside the package
     assert not any(map_dir.iterdir()) and not cache.map_marker(map_dir).exists()
 
 

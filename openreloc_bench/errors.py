@@ -35,9 +35,14 @@ class PluginError(OpenRelocError):
 def raised_at(e: BaseException, file: Path | None = None) -> str:
     """``<file> line <n>: <Error>: <message>`` on one line, at the innermost frame in ``file`` (a plugin's
     source, where the bug most likely is) or else the innermost frame: what a test runner would show first."""
-    message = " ".join(str(e).split())[:300]
     frames = traceback.extract_tb(e.__traceback__)
     in_file = [f for f in frames if file is not None and Path(f.filename).resolve() == file]
-    frame = (in_file or frames or [None])[-1]
+    return described(e, (in_file or frames or [None])[-1])
+
+
+def described(e: BaseException, frame: traceback.FrameSummary | None) -> str:
+    """``<file> line <n>: <Error>: <message>`` on one line (the message's whitespace folded, cut at 300
+    characters), at ``frame`` (none: no place)."""
+    message = " ".join(str(e).split())[:300]
     where = f"{Path(frame.filename).name} line {frame.lineno}: " if frame is not None else ""
     return f"{where}{type(e).__name__}: {message}" if message else f"{where}{type(e).__name__}"

@@ -19,7 +19,7 @@ from pathlib import Path
 from types import ModuleType
 
 from openreloc_bench import methods
-from openreloc_bench.errors import ConfigError
+from openreloc_bench.errors import ConfigError, described
 
 
 def is_path(spec: str) -> bool:
@@ -121,12 +121,10 @@ def _append_path(folder: Path) -> None:
 def _cause(e: BaseException) -> str:
     """``<file> line <n>: <Error>: <message>`` on one line, at the plugin's line that raised (the first
     frame past this module and Python's import machinery)."""
-    message = " ".join(str(e).split())[:300]
     if isinstance(e, SyntaxError) and e.filename:
         return f"{Path(e.filename).name} line {e.lineno}: SyntaxError: {e.msg}"
     frames = [f for f in traceback.extract_tb(e.__traceback__) if not _is_machinery(f.filename)]
-    where = f"{Path(frames[0].filename).name} line {frames[0].lineno}: " if frames else ""
-    return f"{where}{type(e).__name__}: {message}" if message else f"{where}{type(e).__name__}"
+    return described(e, frames[0] if frames else None)
 
 
 def _is_machinery(filename: str) -> bool:

@@ -36,14 +36,16 @@ def write_file_set(directory: Path | str, format_name: str, version: int, payloa
     directory = Path(directory)
     for name, data in payload.items():
         io.atomic_write_bytes(directory / name, data)
-    io.write_json(
-        directory / MANIFEST,
-        {
-            "format": format_name,
-            "version": version,
-            "files": {n: {"sha256": hashlib.sha256(d).hexdigest(), "bytes": len(d)} for n, d in payload.items()},
-        },
-    )
+    io.write_json(directory / MANIFEST, _manifest(format_name, version, payload))
+
+
+def _manifest(format_name: str, version: int, payload: dict[str, bytes]) -> dict[str, Any]:
+    """The manifest of a file set: its format and each file's sha256 and size."""
+    return {
+        "format": format_name,
+        "version": version,
+        "files": {n: {"sha256": hashlib.sha256(d).hexdigest(), "bytes": len(d)} for n, d in payload.items()},
+    }
 
 
 def write_arrays(
@@ -152,15 +154,15 @@ def record_source(directory: Path | str, source: dict[str, str]) -> None:
     without a manifest (a plugin's own format) gets one, listing its files (:data:`FOREIGN_FORMAT`), so
     that it is checked and replaced like any map; one with sub-folders is left as it is."""
     path = Path(directory) / MANIFEST
-    if not path.is_file():
+    if path.is_file():
+        doc = io.read_json(path)
+        if not isinstance(doc, dict):
+            raise DataError(path, "not a file-set manifest")
+    else:
         files = sorted(Path(directory).iterdir()) if Path(directory).is_dir() else []
-        if files and all(p.is_file() and not p.is_symlink() for p in files):
-            write_file_set(directory, *FOREIGN_FORMAT, {p.name: p.read_bytes() for p in files})
-        else:
+        if not files or not all(p.is_file() and not p.is_symlink() for p in files):
             return
-    doc = io.read_json(path)
-    if not isinstance(doc, dict):
-        raise DataError(path, "not a file-set manifest")
+        doc = _manifest(*FOREIGN_FORMAT, {p.name: p.read_bytes() for p in files})  # the files stay as written
     io.write_json(path, {**doc, SOURCE_KEY: source})
 
 

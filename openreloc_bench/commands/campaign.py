@@ -52,8 +52,7 @@ def run(args: argparse.Namespace) -> int:
     plan = campaign.load_plan(args.plan)
     for flag, folder in (("--work", args.work), ("--out", args.out)):
         if folder is not None and not args.list:
-            paths.check_output(folder, [], flag, fills=True)
-            paths.check_writable_folder(folder, flag)
+            paths.check_output_folder(folder, [], flag)
     if args.list:
         campaign.list_steps(plan, args.work)
         return 0

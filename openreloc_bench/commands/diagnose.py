@@ -84,8 +84,7 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError("--pictures takes a count >= 0 and needs --out (the folder they are written to)")
     for out in (args.work, args.out):
         if out is not None:
-            paths.check_output(out, scene_dirs, "output folder", fills=True)
-            paths.check_writable_folder(out, "output folder")
+            paths.check_output_folder(out, scene_dirs, "output folder")
     overrides = method_overrides(args)
     rows = [diagnose_scene(d, overrides, options, args.work, out_dir=args.out) for d in scene_dirs]
     result = {"track": options.track, "pooled": pool(rows), "scenes": rows}

@@ -74,6 +74,14 @@ def check_output_file(output: Path, inputs: Iterable[Path], what: str, suffix: s
     return out
 
 
+def check_output_folder(output: Path, inputs: Iterable[Path], what: str) -> Path:
+    """:func:`check_output` for a folder a command writes its files into (``fills``): also refused when it
+    cannot be written (:func:`check_writable_folder`)."""
+    out = check_output(output, inputs, what, fills=True)
+    check_writable_folder(output, what)
+    return out
+
+
 def check_writable_file(output: Path, what: str) -> Path:
     """Refuse a file path that cannot be written (no such folder, not writable) before any work starts,
     so that a long run does not lose its results at the end."""

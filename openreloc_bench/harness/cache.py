@@ -50,7 +50,7 @@ def foreign_code(method: Relocalizer) -> str | None:
     its maps instead of scoring the old code's; None for this project's methods, whose code version every
     result records (:func:`git_commit`)."""
     source = foreign_source(type(method))
-    return hashlib.sha256(source.read_bytes()).hexdigest()[:12] if source is not None else None
+    return _file_hash(source) if source is not None else None
 
 
 def method_source(method: Relocalizer) -> str:
@@ -58,7 +58,11 @@ def method_source(method: Relocalizer) -> str:
     outside this project, the file defining it and that file's hash (:func:`foreign_code`)."""
     name = f"{type(method).__module__}:{type(method).__qualname__}"
     source = foreign_source(type(method))
-    return name if source is None else f"{name} in {source} (sha256 {foreign_code(method)})"
+    return name if source is None else f"{name} in {source} (sha256 {_file_hash(source)})"
+
+
+def _file_hash(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()[:12]
 
 
 def map_folder(root: Path, name: str, key: str, scene_key: str) -> Path:

@@ -67,9 +67,6 @@ def place_labels(
     return result
 
 
-LEGEND_NAMES = {"?": "no category", "by id": "landmarks, coloured by id (a predicted map names no category)"}
-
-
 def draw_map(m: ObjectMap, out: Path) -> plt.Axes:
     """Write the picture to ``out``; returns its axes (for tests: legend, labels)."""
     import matplotlib  # here, not at module level: every CLI call imports all command modules
@@ -80,24 +77,22 @@ def draw_map(m: ObjectMap, out: Path) -> plt.Axes:
 
     fig, ax = plt.subplots(figsize=(9, 9), dpi=110)
     counts = Counter(lm.category or "?" for lm in m.landmarks.values() if lm.valid)
-    by_id = set(counts) == {"?"}  # a predicted map names no category: its landmarks are told apart by id
-    cats = sorted(counts)
     palette = [c for name in ("tab20", "tab20b", "tab20c") for c in plt.get_cmap(name).colors]
-    color = {c: palette[k % len(palette)] for k, c in enumerate(cats)}
+    if set(counts) == {"?"}:  # a predicted map names no category: its landmarks are told apart by id
+        colours = {lm.id: palette[lm.id % len(palette)] for lm in m.landmarks.values()}
+        legend = [("0.3", f"landmarks, coloured by id (a predicted map names no category) ({counts['?']})")]
+    else:
+        by_category = {c: palette[k % len(palette)] for k, c in enumerate(sorted(counts))}
+        colours = {lm.id: by_category.get(lm.category or "?", "0.6") for lm in m.landmarks.values()}
+        legend = [(by_category[c], f"{c if c != '?' else 'no category'} ({counts[c]})") for c in sorted(counts)]
     for lm in m.landmarks.values():
         pts = lm.points[:: max(1, len(lm.points) // 400)]
-        c = (palette[lm.id % len(palette)] if by_id else color.get(lm.category or "?", "0.6")) if lm.valid else "0.75"
+        c = colours[lm.id] if lm.valid else "0.75"
         ax.scatter(pts[:, 0], pts[:, 1], s=2, color=c, alpha=0.5 if lm.valid else 0.25, linewidths=0)
-    if by_id:
-        color, counts = {"by id": "0.3"}, Counter({"by id": counts["?"]})
-        cats = ["by id"]
     for u, v, d in m.graph.edges(data=True):
         a, b = m.landmarks[u].center, m.landmarks[v].center
         ax.plot([a[0], b[0]], [a[1], b[1]], "--" if d["kind"] == "overlap" else "-", color="k", lw=0.5, alpha=0.4)
-    handles = [
-        Line2D([], [], ls="", marker="o", ms=5, color=color[c], label=f"{LEGEND_NAMES.get(c, c)} ({counts[c]})")
-        for c in cats
-    ]
+    handles = [Line2D([], [], ls="", marker="o", ms=5, color=c, label=label) for c, label in legend]
     n_filtered = sum(not lm.valid for lm in m.landmarks.values())
     if n_filtered:
         handles.append(

@@ -28,12 +28,46 @@ def exit_quietly_on_interrupt() -> None:
     bars_on_a_thread_lock()
 
 
-def pool_worker(parent_pid: int) -> None:
+def pool_worker(parent_pid: int, threads: int | None = None) -> None:
     """Initializer of a process pool's workers: ignore Ctrl-C, which the parent handles by stopping them
-    (:func:`workers_stopped_on_interrupt`), and exit with the parent (:func:`exit_with`)."""
+    (:func:`workers_stopped_on_interrupt`), exit with the parent (:func:`exit_with`) and use at most
+    ``threads`` compute threads (:func:`limit_threads`)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     bars_on_a_thread_lock()
     exit_with(parent_pid)
+    limit_threads(threads)
+
+
+_thread_limit: int | None = None
+
+
+def core_share(workers: int) -> int:
+    """Compute threads for each of ``workers`` processes sharing this machine's cores (at least 1)."""
+    return max(1, len(os.sched_getaffinity(0)) // workers)
+
+
+def limit_threads(threads: int | None) -> None:
+    """Cap this process's compute threads (torch, OpenCV, and OpenMP libraries loaded later, such as
+    faiss) at ``threads``; None leaves the libraries' defaults (every core).
+
+    A pool of N workers on C cores gives each C // N: two workers on two cores that each ran two torch
+    threads took 105 s where one thread each took 85 s (an OpenReLoc query job of the demo). The cap is
+    passed on to the map builders and query servers a worker starts (:func:`thread_limit`)."""
+    global _thread_limit
+    if threads is None:
+        return
+    import cv2
+    import torch
+
+    _thread_limit = threads
+    os.environ["OMP_NUM_THREADS"] = str(threads)
+    torch.set_num_threads(threads)
+    cv2.setNumThreads(threads)
+
+
+def thread_limit() -> int | None:
+    """This process's cap set by :func:`limit_threads` (None: none)."""
+    return _thread_limit
 
 
 def bars_on_a_thread_lock() -> None:

@@ -12,10 +12,11 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from openreloc_bench.data import paths
-from openreloc_bench.openreloc.map import ObjectMap
 
 if TYPE_CHECKING:
     import matplotlib.pyplot as plt
+
+    from openreloc_bench.openreloc.map import ObjectMap
 
 NAME = "show-map"
 HELP = "top-down PNG of an OpenReLoc map (landmarks, scene graph, reference frames)"
@@ -157,6 +158,8 @@ def draw_map(m: ObjectMap, out: Path) -> plt.Axes:
 def run(args: argparse.Namespace) -> int:
     out = args.out or args.map_dir.parent / f"{args.map_dir.resolve().name}.png"
     paths.check_output_file(out, [args.map_dir], "--out", suffix=".png")
+    from openreloc_bench.openreloc.map import ObjectMap  # torch and open3d: not for every `--help`
+
     m = ObjectMap.load(args.map_dir)
     draw_map(m, out)
     print(out)

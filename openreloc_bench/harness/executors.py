@@ -16,7 +16,7 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from typing import Any, Protocol, TypeVar
 
 from openreloc_bench.errors import ConfigError
-from openreloc_bench.processes import pool_worker, workers_stopped_on_interrupt
+from openreloc_bench.processes import core_share, pool_worker, workers_stopped_on_interrupt
 
 J = TypeVar("J")
 EXECUTORS = ("local", "ray")
@@ -50,7 +50,7 @@ class InlineExecutor:
 
 
 class LocalExecutor:
-    """A pool of ``workers`` fresh processes on this machine."""
+    """A pool of ``workers`` fresh processes on this machine, each with its share of the cores' threads."""
 
     def __init__(self, workers: int):
         self.workers = workers
@@ -63,7 +63,7 @@ class LocalExecutor:
                 max_workers=min(self.workers, len(jobs)),
                 mp_context=mp_context(),
                 initializer=pool_worker,
-                initargs=(os.getpid(),),
+                initargs=(os.getpid(), core_share(self.workers)),
             ) as pool,
             workers_stopped_on_interrupt(pool),
         ):

@@ -14,7 +14,7 @@ from typing import Any, TypeVar
 from openreloc_bench.errors import OpenRelocError
 from openreloc_bench.harness.executors import mp_context
 from openreloc_bench.harness.score import Outcome
-from openreloc_bench.processes import exit_quietly_on_interrupt, exit_with
+from openreloc_bench.processes import exit_quietly_on_interrupt, exit_with, limit_threads, thread_limit
 
 Job = TypeVar("Job")
 
@@ -24,7 +24,7 @@ def build_map_in_child(build: Callable[[Job], dict[str, Any]], job: Job, timeout
     seconds, so a method hanging in ``build_map`` fails its own map instead of hanging the evaluation."""
     ctx = mp_context()
     recv, send = ctx.Pipe(duplex=False)
-    proc = ctx.Process(target=_build_in_child, args=(send, build, job, os.getpid()))
+    proc = ctx.Process(target=_build_in_child, args=(send, build, job, os.getpid(), thread_limit()))
     proc.start()
     send.close()
     try:
@@ -46,9 +46,12 @@ def build_map_in_child(build: Callable[[Job], dict[str, Any]], job: Job, timeout
         recv.close()
 
 
-def _build_in_child(conn: Any, build: Callable[[Job], dict[str, Any]], job: Job, parent_pid: int) -> None:
+def _build_in_child(
+    conn: Any, build: Callable[[Job], dict[str, Any]], job: Job, parent_pid: int, threads: int | None
+) -> None:
     exit_quietly_on_interrupt()
     exit_with(parent_pid)
+    limit_threads(threads)
     conn.send(build(job))
     conn.close()
 
@@ -58,13 +61,14 @@ Opener = Callable[[Job], tuple[Callable[[int], Outcome], float]]
 loading took."""
 
 
-def _serve(conn: Any, open_queries: Opener, job: Any, parent_pid: int) -> None:
+def _serve(conn: Any, open_queries: Opener, job: Any, parent_pid: int, threads: int | None) -> None:
     """Query-server child: load the map once, then answer query indices until told to stop.
 
     It ends with its parent (a pool worker its run stopped): silently, also when the parent went while
     the map was loading and the pipe is broken by the time it answers."""
     exit_quietly_on_interrupt()
     exit_with(parent_pid)
+    limit_threads(threads)
     try:
         _answer_queries(conn, open_queries, job)
     except (BrokenPipeError, ConnectionResetError, EOFError):
@@ -103,7 +107,9 @@ class QueryServer:
     def _start(self) -> None:
         ctx = mp_context()
         self._conn, child = ctx.Pipe()
-        self._proc = ctx.Process(target=_serve, args=(child, self.open_queries, self.job, os.getpid()), daemon=True)
+        self._proc = ctx.Process(
+            target=_serve, args=(child, self.open_queries, self.job, os.getpid(), thread_limit()), daemon=True
+        )
         self._proc.start()
         child.close()
         self.restarts += 1

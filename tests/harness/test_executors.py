@@ -18,6 +18,7 @@ from openreloc_bench.harness import runner
 from openreloc_bench.harness.executors import InlineExecutor, LocalExecutor, make_executor
 from openreloc_bench.harness.runner import EvalConfig, MethodRun
 from openreloc_bench.methods import uses_masks
+from openreloc_bench.processes import core_share
 
 
 def _square(x: int) -> int:
@@ -27,6 +28,34 @@ def _square(x: int) -> int:
 @pytest.mark.parametrize("executor", [InlineExecutor(), LocalExecutor(2)])
 def test_map_yields_every_job_with_its_result(executor) -> None:
     assert sorted(executor.map(_square, [1, 2, 3])) == [(1, 1), (2, 4), (3, 9)]
+
+
+def _threads(_: int) -> tuple[int, int, str | None, int]:
+    """A worker's torch and OpenCV threads, OpenMP setting, and a map builder's torch threads."""
+    import cv2
+    import torch
+
+    from openreloc_bench.harness.isolation import build_map_in_child
+
+    child = build_map_in_child(_torch_threads, None, timeout_s=60)["threads"]
+    return torch.get_num_threads(), cv2.getNumThreads(), os.environ.get("OMP_NUM_THREADS"), child
+
+
+def _torch_threads(_: None) -> dict[str, int]:
+    import torch
+
+    return {"threads": torch.get_num_threads()}
+
+
+def test_pool_workers_and_their_children_share_the_cores() -> None:
+    workers = len(os.sched_getaffinity(0)) + 1  # more workers than cores: one thread each
+    (_, (torch_n, cv_n, omp, child_n)), *_ = LocalExecutor(workers).map(_threads, [0])
+    assert (torch_n, cv_n, omp, child_n) == (1, 1, "1", 1)
+
+
+def test_core_share_is_at_least_one_thread() -> None:
+    cores = len(os.sched_getaffinity(0))
+    assert (core_share(1), core_share(cores), core_share(10 * cores)) == (cores, 1, 1)
 
 
 def _running(pid: int) -> bool:

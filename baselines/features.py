@@ -28,6 +28,7 @@ import numpy as np
 from openreloc_bench.data import mapfile
 from openreloc_bench.data.types import SceneSequence
 from openreloc_bench.errors import DataError
+from openreloc_bench.methods import MapPoints
 from openreloc_bench.vision.local_features import Keypoints, from_cv, grey, lift
 
 # --------------------------------------------------------------------------------------------
@@ -180,6 +181,20 @@ class FeatureMap:
         if not len(frames):
             return np.zeros(0, dtype=np.int64)
         return np.concatenate([np.arange(self.offsets[f], self.offsets[f + 1]) for f in frames])
+
+    def drawn(self) -> MapPoints:
+        """The keypoints' world points, grouped by the mapping frame that saw them, and those frames."""
+        n = np.diff(self.offsets)
+        return MapPoints(
+            points=self.points,
+            group=self.frame_of(),
+            labels={f: f"seen from mapping frame {f} ({n[f]} points)" for f in range(self.n_frames)},
+            K=self.K,
+            size=(self.width, self.height),
+            cameras=self.poses,
+            names=("points by mapping frame", "", "mapping frames"),
+            summary=f"{len(self.points)} points from {self.n_frames} mapping frames",
+        )
 
     def save(self, map_dir: Path | str) -> None:
         """Write ``arrays.npz`` and ``meta.json``, then ``manifest.json`` (checksums) last."""

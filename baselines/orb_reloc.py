@@ -46,7 +46,7 @@ from openreloc_bench import config as cfglib
 from openreloc_bench import geometry
 from openreloc_bench.bars import tqdm
 from openreloc_bench.data.types import SceneSequence
-from openreloc_bench.methods import Failure, PoseEstimate, QueryFrame
+from openreloc_bench.methods import Failure, MapPoints, PoseEstimate, QueryFrame
 from openreloc_bench.vision.local_features import Keypoints
 
 MAP_FORMAT = "orb-reloc-map"
@@ -167,6 +167,9 @@ class OrbReloc:
         }
         fmap.meta = {"config": self.map_config(), "stats": {"keyframes": fmap.n_frames, "points": len(fmap.points)}}
         fmap.save(map_dir)
+
+    def map_points(self, map_dir: Path) -> MapPoints:
+        return FeatureMap.load(map_dir, MAP_FORMAT, MAP_VERSION).drawn()
 
     def load_map(self, map_dir: Path) -> None:
         fmap = FeatureMap.load(map_dir, MAP_FORMAT, MAP_VERSION)

@@ -24,7 +24,7 @@ from baselines.features import FeatureMap, build_feature_map
 from baselines.frame_retrieval import Vlad, VladConfig, top_k
 from openreloc_bench import config as cfglib
 from openreloc_bench.data.types import SceneSequence
-from openreloc_bench.methods import Failure, PoseEstimate, QueryFrame
+from openreloc_bench.methods import Failure, MapPoints, PoseEstimate, QueryFrame
 from openreloc_bench.vision.absolute_pose import AbsolutePoseConfig, estimate_absolute_pose
 from openreloc_bench.vision.local_features import SiftConfig, extract_sift, root_sift
 
@@ -100,6 +100,9 @@ class SiftPnP:
         }
         fmap.meta = {"config": self.map_config(), "stats": {"frames": fmap.n_frames, "keypoints": len(fmap.points)}}
         fmap.save(map_dir)
+
+    def map_points(self, map_dir: Path) -> MapPoints:
+        return FeatureMap.load(map_dir, MAP_FORMAT, MAP_VERSION).drawn()
 
     def load_map(self, map_dir: Path) -> None:
         self.map = FeatureMap.load(map_dir, MAP_FORMAT, MAP_VERSION)

@@ -85,7 +85,8 @@ class Relocalizer(Protocol):
     with every result, printed by ``openreloc-bench config``); ``uses_masks = False``, declaring that the
     method reads no instance masks (it is then given none, and its results are recorded as
     ``mask-free``, standing for both tracks); ``map_config()`` (see :func:`map_config`); ``reference``,
-    the paper and code the method follows (the boards cite it).
+    the paper and code the method follows (the boards cite it); ``map_points(map_dir)``, what a map of the
+    method holds in 3D (:class:`MapPoints`, drawn by ``openreloc-bench view``; no ``load_map`` needed).
     """
 
     name: str
@@ -95,6 +96,31 @@ class Relocalizer(Protocol):
     def load_map(self, map_dir: Path) -> None: ...
 
     def localize(self, query: QueryFrame) -> PoseEstimate | Failure | None: ...
+
+
+@dataclass
+class MapPoints:
+    """What a loaded map holds in 3D, for drawing: its points, each in a group (a landmark, an object, the
+    mapping frame it was seen from), and the cameras it keeps."""
+
+    points: np.ndarray
+    """(N, 3) world points."""
+    group: np.ndarray
+    """(N,) int: the group of each point; points of a group share a colour and a hover text."""
+    labels: dict[int, str]
+    """Hover text of each group."""
+    K: np.ndarray
+    """3x3 intrinsics of the map's camera."""
+    size: tuple[int, int]
+    """(width, height) of the map's images."""
+    cameras: np.ndarray = field(default_factory=lambda: np.zeros((0, 4, 4)))
+    """(F, 4, 4) T_wc of the frames the map keeps (keyframes, reference frames)."""
+    muted: frozenset[int] = frozenset()
+    """Groups drawn grey, apart (e.g. landmarks a filter set aside)."""
+    names: tuple[str, str, str] = ("points", "set aside", "cameras")
+    """Legend names of the points, the muted points and the cameras."""
+    summary: str = ""
+    """One line on the map's content, e.g. "40 landmarks (31 valid), 12 reference frames"."""
 
 
 @dataclass

@@ -18,9 +18,10 @@ from typing import Any
 
 import numpy as np
 
-from baselines.goreloc.vocabulary import N_CLASSES
+from baselines.goreloc.vocabulary import COCO_CLASSES, N_CLASSES
 from openreloc_bench.data import mapfile
 from openreloc_bench.errors import DataError
+from openreloc_bench.methods import MapPoints
 
 FORMAT_NAME = "goreloc-map"
 FORMAT_VERSION = 1
@@ -67,6 +68,28 @@ class GORelocMap:
         adj = np.zeros((len(self.ids), len(self.ids)), bool)
         adj[self.edges[:, 0], self.edges[:, 1]] = True
         return adj | adj.T
+
+    def drawn(self, per_object: int = 200) -> MapPoints:
+        """Each object's ellipsoid as ``per_object`` points on its surface (a Fibonacci sphere, scaled and
+        turned), labelled with its most frequent COCO label."""
+        k = np.arange(per_object) + 0.5
+        z, phi = 1 - 2 * k / per_object, np.pi * (1 + 5**0.5) * k
+        sphere = np.c_[np.sqrt(1 - z**2) * np.cos(phi), np.sqrt(1 - z**2) * np.sin(phi), z]
+        shells = [c + (sphere * a) @ R.T for c, R, a in zip(self.centres, self.rotations, self.axes)]
+        labels = {
+            int(i): f"object {i}: {COCO_CLASSES[int(np.argmax(n))]} ({cat or 'no category'}), "
+            f"semi-axes {a[0]:.2f} x {a[1]:.2f} x {a[2]:.2f} m"
+            for i, n, cat, a in zip(self.ids, self.label_counts, self.categories, self.axes)
+        }
+        return MapPoints(
+            points=np.concatenate(shells) if shells else np.zeros((0, 3)),
+            group=np.repeat(self.ids.astype(np.int64), per_object),
+            labels=labels,
+            K=self.K,
+            size=(self.width, self.height),
+            names=("objects (ellipsoids)", "", "cameras"),
+            summary=f"{len(self.ids)} objects (ellipsoids), {len(self.edges)} graph edges",
+        )
 
     def save(self, map_dir: Path | str) -> None:
         inst = sorted(self.instance_labels.items())

@@ -38,7 +38,7 @@ from baselines.goreloc.vocabulary import COCO_CLASSES, background_nouns
 from openreloc_bench import config as cfglib
 from openreloc_bench.data.types import SceneSequence
 from openreloc_bench.errors import DataError
-from openreloc_bench.methods import Failure, PoseEstimate, QueryFrame
+from openreloc_bench.methods import Failure, MapPoints, PoseEstimate, QueryFrame
 from openreloc_bench.vision.base import check_backend, create_encoder, create_segmenter, encoder_fingerprint
 
 
@@ -133,6 +133,9 @@ class GOReloc:
             encoder_info = encoder.config()
             encoder_info["fingerprint"] = encoder.weights_fingerprint(**encoder_info)
         build_goreloc_map(mapping, cfg.mapping, segmenter, labeller, encoder_info).save(map_dir)
+
+    def map_points(self, map_dir: Path) -> MapPoints:
+        return GORelocMap.load(map_dir).drawn()
 
     def load_map(self, map_dir: Path) -> None:
         cfg = self.config

@@ -1,14 +1,19 @@
-"""Write an OpenReLoc map in 3D as one self-contained HTML file (plotly, opens offline in a browser).
+"""Write a method's map in 3D as one self-contained HTML file (plotly, opens offline in a browser).
 
-It shows the map's landmarks (points coloured per landmark, hover: id and category; the ones filtered
-as invalid objects in grey) and its reference frames' cameras. With --scene (the scene the map was
+It shows what the map keeps in 3D, as its method describes it (``map_points``): OpenReLoc's landmarks
+(points coloured per landmark, hover: id and category; the ones filtered as invalid objects in grey) and
+reference frames, the keypoints' world points of ``sift-pnp`` and ``orb-reloc`` (coloured by the mapping
+frame that saw them) and their mapping frames, GOReloc's ellipsoids. The method is the one whose format
+the map's manifest names (``<method>-map``), or --method; the title names it. A method that keeps no
+points (``nearest-frame``, ``posenet``...) is drawn with --scene's mapping path only. With --scene (the scene the map was
 built from): the mapping path and a few of its cameras. With --results (a pose file, or an ``eval``
 run folder ``RESULTS/runs/<method>/<track>/<scene>/``, whose ``<split>.txt`` is read): every query of
 --split at its true camera, and each estimate joined to it by a line, green within 50 cm and red
 beyond; estimates far outside the scene are drawn at the view's edge and counted in the legend.
-Landmark points are subsampled to --max-points. Nothing is written inside the inputs.
+Map points are subsampled to --max-points. Nothing is written inside the inputs.
 
   openreloc-bench view maps/smoke --scene data/smoke-room --results poses.txt --out smoke.html
+  openreloc-bench view RESULTS/maps/sift-pnp/HASH/smoke-room --scene data/smoke-room --out sift.html
 """
 
 from __future__ import annotations
@@ -18,21 +23,26 @@ from pathlib import Path
 
 import numpy as np
 
-from openreloc_bench.data import io, paths
+from openreloc_bench import view3d
+from openreloc_bench.commands.options import add_plugin_argument
+from openreloc_bench.data import io, mapfile, paths
 from openreloc_bench.data.results import read_submission
 from openreloc_bench.data.scene import QUERY_SPLITS, Scene
 from openreloc_bench.errors import ConfigError, DataError
 from openreloc_bench.harness.cache import check_map_source
-from openreloc_bench.openreloc import view3d
-from openreloc_bench.openreloc.map import ObjectMap
+from openreloc_bench.methods import MapPoints, available_methods, create_method
 
 NAME = "view"
-HELP = "3D HTML view of an OpenReLoc map: landmarks, mapping path, estimated and true query cameras"
+HELP = "3D HTML view of any method's map: its points, mapping path, estimated and true query cameras"
 ORDER = 46
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("map_dir", type=Path, metavar="MAPDIR", help="map directory written by `openreloc-bench map`")
+    parser.add_argument(
+        "map_dir", type=Path, metavar="MAPDIR", help="map directory written by `openreloc-bench map` or `eval`"
+    )
+    parser.add_argument("--method", help="the method that built MAPDIR (default: the one its manifest's format names)")
+    add_plugin_argument(parser)
     parser.add_argument("--scene", type=Path, help="the scene the map was built from: draws the mapping path")
     parser.add_argument(
         "--results",
@@ -41,10 +51,51 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="a pose file (`localize --out`, `name qw qx qy qz tx ty tz`) or an eval run folder; needs --scene",
     )
     parser.add_argument("--split", default="query", choices=QUERY_SPLITS, help="the query split of --results drawn")
-    parser.add_argument(
-        "--max-points", type=int, default=view3d.DEFAULT_MAX_POINTS, help="landmark points drawn at most"
-    )
+    parser.add_argument("--max-points", type=int, default=view3d.DEFAULT_MAX_POINTS, help="map points drawn at most")
     parser.add_argument("--out", type=Path, required=True, help="HTML file to write")
+
+
+def map_method(map_dir: Path, method: str | None) -> str:
+    """The registered method whose map ``map_dir`` is: ``method``, else the one the manifest's format
+    names (``<method>-map``); ConfigError when neither is known."""
+    known = available_methods()
+    if method is not None:
+        if method not in known:
+            raise ConfigError(f"unknown method '{method}' (known: {', '.join(sorted(known))})")
+        return method
+    doc = io.read_json(map_dir / mapfile.MANIFEST) if (map_dir / mapfile.MANIFEST).is_file() else None
+    if not isinstance(doc, dict):
+        raise DataError(map_dir, "no map manifest here: give a map directory written by `map` or `eval`")
+    fmt = str(doc.get("format", ""))
+    name = fmt.removesuffix("-map")
+    if name not in known:
+        raise ConfigError(f"{map_dir}: no method is registered for map format '{fmt}': give it with --method")
+    return name
+
+
+def map_points(name: str, map_dir: Path, scene: Scene | None) -> MapPoints:
+    """What method ``name`` draws of its map, its name first in the summary; a method that declares no
+    points gives the mapping camera of ``scene`` and no points (ConfigError without a scene)."""
+    method = create_method(name)
+    draw = getattr(method, "map_points", None)
+    if draw is not None:
+        mp = draw(map_dir)
+        mp.summary = f"{name}: {mp.summary}"
+        return mp
+    if scene is None:
+        raise ConfigError(
+            f"method '{name}' keeps no 3D points it can draw (no map_points): give --scene to draw the "
+            "mapping path and queries"
+        )
+    seq = scene.sequence("mapping")
+    return MapPoints(
+        np.zeros((0, 3)),
+        np.zeros(0, np.int64),
+        {},
+        seq.K,
+        (seq.width, seq.height),
+        summary=f"{name}: keeps no 3D points",
+    )
 
 
 def pose_file(results: Path, split: str) -> Path:
@@ -97,8 +148,8 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError("--results needs --scene: the true query cameras come from the scene's ground truth")
     if args.max_points < 1:
         raise ConfigError(f"--max-points must be >= 1, got {args.max_points}")
-    m = ObjectMap.load(args.map_dir)
-    mapping = true = estimates = None
+    name = map_method(args.map_dir, args.method)
+    scene = mapping = true = estimates = None
     if args.scene is not None:
         scene = Scene(args.scene)
         check_map_source(args.map_dir, scene)
@@ -106,7 +157,7 @@ def run(args: argparse.Namespace) -> int:
         if args.results is not None:
             check_run_scene(args.results, args.split, scene)
             true, estimates = query_poses(pose_file(args.results, args.split), scene, args.split)
-    fig = view3d.map_figure(m, mapping, true, estimates, max_points=args.max_points)
+    fig = view3d.map_figure(map_points(name, args.map_dir, scene), mapping, true, estimates, max_points=args.max_points)
     out.parent.mkdir(parents=True, exist_ok=True)
     io.atomic_write_text(out, fig.to_html(include_plotlyjs=True, full_html=True))
     print(fig.layout.title.text)

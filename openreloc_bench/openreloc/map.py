@@ -27,6 +27,7 @@ import numpy as np
 
 from openreloc_bench.data import mapfile
 from openreloc_bench.errors import DataError
+from openreloc_bench.methods import MapPoints
 from openreloc_bench.openreloc.anchors import DESCRIPTOR_SIZE, Anchors, DescriptorCodec
 
 MAP_FORMAT_VERSION = 3
@@ -112,6 +113,32 @@ class ObjectMap:
     @property
     def descriptor_dim(self) -> int:
         return next((int(lm.descriptor.shape[0]) for lm in self.landmarks.values()), 0)
+
+    def drawn(self) -> MapPoints:
+        """The landmarks' points (one group each; the filtered ones muted) and the reference frames."""
+        ids = sorted(self.landmarks)
+        lms = [self.landmarks[i] for i in ids]
+        labels = {
+            lid: f"landmark {lid}: {lm.category or 'no category'}<br>"
+            f"{'valid' if lm.valid else 'filtered (invalid object)'}, {len(lm.points)} points, "
+            f"seen in {lm.n_views} frame{'' if lm.n_views == 1 else 's'}"
+            for lid, lm in zip(ids, lms)
+        }
+        rfs = self.reference_frames
+        return MapPoints(
+            points=np.concatenate(
+                [np.asarray(lm.points, np.float64).reshape(-1, 3) for lm in lms] or [np.zeros((0, 3))]
+            ),
+            group=np.repeat(np.array(ids, dtype=np.int64), [len(lm.points) for lm in lms]),
+            labels=labels,
+            K=self.K,
+            size=(self.width, self.height),
+            cameras=np.stack([rf.T_wc for rf in rfs]) if rfs else np.zeros((0, 4, 4)),
+            muted=frozenset(i for i, lm in zip(ids, lms) if not lm.valid),
+            names=("landmarks", "filtered landmarks (walls, floors...)", "reference frames"),
+            summary=f"{len(ids)} landmarks ({len(self.valid_ids())} valid), {len(rfs)} reference frames, "
+            f"{sum(len(lm.points) for lm in lms)} points",
+        )
 
     # ---------------------------------------------------------------------------------------- save
 

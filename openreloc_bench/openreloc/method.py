@@ -24,8 +24,6 @@ import dataclasses
 import functools
 import math
 import time
-from collections.abc import Callable, Iterator
-from contextlib import AbstractContextManager, contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
@@ -37,7 +35,7 @@ from openreloc_bench import config as cfglib
 from openreloc_bench.config import check_ranges
 from openreloc_bench.data.types import SceneSequence
 from openreloc_bench.errors import DataError
-from openreloc_bench.methods import Failure, PoseEstimate, QueryFrame
+from openreloc_bench.methods import Failure, MapPoints, PoseEstimate, QueryFrame
 from openreloc_bench.openreloc.anchors import AnchorConfig, AnchorIndex, AnchorPose, refined_or_prior
 from openreloc_bench.openreloc.association import (
     AssociationConfig,
@@ -74,6 +72,7 @@ from openreloc_bench.openreloc.hypotheses import (
 )
 from openreloc_bench.openreloc.map import ObjectMap
 from openreloc_bench.openreloc.refine import RefineConfig
+from openreloc_bench.openreloc.timing import Stage, stage_timer, timed
 from openreloc_bench.openreloc.verify import VerifyConfig, extreme_points, verify_matches
 from openreloc_bench.vision.base import (
     ObjectMask,
@@ -201,6 +200,9 @@ class OpenReLoc:
         segmenter = create_segmenter(cfg.segmenter, **cfg.segmenter_options) if own_masks else None
         build_object_map(mapping, cfg.mapping, encoder, segmenter).save(map_dir)
 
+    def map_points(self, map_dir: Path) -> MapPoints:
+        return ObjectMap.load(map_dir).drawn()
+
     def load_map(self, map_dir: Path) -> None:
         cfg = self.config
         self.map = m = ObjectMap.load(map_dir)
@@ -274,7 +276,7 @@ class OpenReLoc:
         compare (render-and-compare), then the choice among the refined hypotheses."""
         cfg, m = self.config, self.map
         assert m is not None
-        stage = _stage_timer(timings)
+        stage = stage_timer(timings)
         rgb, K = np.asarray(query.color), np.asarray(query.K, dtype=np.float64)
         if (unfit := self._unfit(rgb, K)) is not None:
             return Failure(unfit, diag)
@@ -319,7 +321,7 @@ class OpenReLoc:
                 return self._estimate(anchored.T_wc, keypoints, objects, diag, anchored.inliers)
             if anchored is not None and anchored.inliers >= cfg.anchors.seed_inliers:
                 hypotheses.append(Hypothesis("anchors", anchored.T_wc, matches))
-        compare = _timed(stage, "compare", self._explainer(masks, appearance, K))
+        compare = timed(stage, "compare", self._explainer(masks, appearance, K))
         room = max(0, cfg.verification.refined_modes - 1)
         hypotheses += screen_modes(modes, room, compare if cfg.consistency.enabled else None, diag)
         if cfg.no_refine and len(hypotheses) == 1:  # the prior itself: nothing to refine or to choose from
@@ -655,32 +657,6 @@ def _match_diag(mt: Match, objects: list[QueryObject], m: ObjectMap) -> dict[str
         "graph_score": None if mt.graph_score is None else round(mt.graph_score, 4),
         "uniqueness": round(o.uniqueness, 6),
     }
-
-
-Stage = Callable[[str], AbstractContextManager[None]]
-"""``with stage(name):`` adds the block's time to the query's timing of stage ``name``."""
-
-
-def _stage_timer(timings: dict[str, float]) -> Stage:
-    @contextmanager
-    def stage(name: str) -> Iterator[None]:
-        t = time.perf_counter()
-        try:
-            yield
-        finally:
-            timings[name] = round(timings.get(name, 0.0) + time.perf_counter() - t, 4)  # a stage may run twice
-
-    return stage
-
-
-def _timed(stage: Stage, name: str, compare: Compare) -> Compare:
-    """``compare`` with the time of every call added to stage ``name``."""
-
-    def timed(poses: list[np.ndarray]) -> list[float]:
-        with stage(name):
-            return compare(poses)
-
-    return timed
 
 
 class OpenReLocOracleAssociation(OpenReLoc):

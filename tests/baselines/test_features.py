@@ -31,10 +31,11 @@ def test_orb_falls_back_to_the_low_threshold_in_dark_images(scenes: tuple[Scene,
     assert len(low) > 2 * len(high_only)
 
 
-def test_feature_map_round_trip(tmp_path: Path) -> None:
+def make_feature_map() -> FeatureMap:
+    """Two mapping frames at the origin: 3 and 4 keypoints with random world points."""
     rng = np.random.default_rng(0)
     n = 7
-    fmap = FeatureMap(
+    return FeatureMap(
         "test-map",
         3,
         geometry.intrinsics_from_fov(64, 48, 60.0),
@@ -52,6 +53,10 @@ def test_feature_map_round_trip(tmp_path: Path) -> None:
         {"extra": np.arange(5)},
         {"config": {"a": 1}},
     )
+
+
+def test_feature_map_round_trip(tmp_path: Path) -> None:
+    fmap = make_feature_map()
     fmap.save(tmp_path)
     back = FeatureMap.load(tmp_path, "test-map", 3)
     for name in ("K", "poses", "offsets", "points"):
@@ -77,3 +82,11 @@ def test_build_needs_depth(scenes: tuple[Scene, Scene]) -> None:
 def test_config_validation(cls: type, bad: dict) -> None:
     with pytest.raises(ConfigError):
         from_dict(cls, bad)
+
+
+def test_a_feature_map_draws_its_points_by_the_frame_that_saw_them() -> None:
+    fmap = make_feature_map()
+    mp = fmap.drawn()
+    assert np.array_equal(mp.points, fmap.points) and mp.group.tolist() == [0, 0, 0, 1, 1, 1, 1]
+    assert mp.labels[1] == "seen from mapping frame 1 (4 points)" and len(mp.cameras) == 2
+    assert mp.summary == "7 points from 2 mapping frames"

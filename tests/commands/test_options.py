@@ -26,6 +26,7 @@ PLUGIN_COMMANDS = {
     "leaderboard": ["r"],
     "agent": ["ActiveReloc-v0", "--method", "free-plugin"],
     "demo": ["--methods", "free-plugin", "--out", "o"],
+    "view": ["m", "--method", "free-plugin", "--out", "v.html"],
 }
 """Every command taking ``--plugin``, with the rest of a command line it would run."""
 

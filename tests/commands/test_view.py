@@ -11,6 +11,7 @@ from openreloc_bench.cli import main
 from openreloc_bench.data import io, mapfile
 from openreloc_bench.data.results import write_results
 from openreloc_bench.data.scene import Scene
+from openreloc_bench.methods import create_method
 from tests.conftest import write_tiny_scene
 from tests.openreloc.test_map import make_map
 
@@ -52,7 +53,7 @@ def test_view_writes_one_offline_html_file_with_the_figure(inputs: dict[str, Pat
     legend = [t["name"] for t in traces if t.get("showlegend", True)]
     assert legend == [
         "landmarks (4)",
-        "filtered landmarks (1: walls, floors...)",
+        "filtered landmarks (walls, floors...) (1)",
         "reference frames (2)",
         "mapping path (6 frames)",
         "true cameras (2 returned a pose)",
@@ -60,8 +61,7 @@ def test_view_writes_one_offline_html_file_with_the_figure(inputs: dict[str, Pat
         "estimated, within 50 cm (1)",
         "estimated, beyond 50 cm (1)",
     ]
-    hover = [t.get("hovertemplate", "") for t in traces]
-    assert any(h.startswith("landmark 2: cat2<br>valid") for h in hover)
+    assert any(text.startswith("landmark 2: cat2<br>valid") for t in traces for text in t.get("text") or [])
     assert sorted(p.name for p in inputs["map"].iterdir()) == ["arrays.npz", "manifest.json", "meta.json"]
 
 
@@ -102,7 +102,7 @@ def empty_folder(w: dict[str, Path]) -> str:
 
 # (extra arguments, given the inputs; the text of the one-line error)
 MISTAKES = {
-    "a folder that is not a map": (lambda w: [str(w["scene"]), "--out", "v.html"], "no openreloc-map here"),
+    "a folder that is not a map": (lambda w: [str(w["scene"]), "--out", "v.html"], "no map manifest here"),
     "a map of another scene": (
         lambda w: [str(w["map"]), "--scene", other_scene(w), "--out", "v.html"],
         "is a map of scene 'tiny'",
@@ -174,5 +174,30 @@ def test_help(capsys) -> None:
     assert "usage: openreloc-bench view" in text and "MAPDIR" in text and "--results RUN_OR_POSE_FILE" in text
     assert (
         "self-contained HTML file" in text
-        and "--max-points MAX_POINTS landmark points drawn at most (default: 60000)" in text
+        and "--max-points MAX_POINTS map points drawn at most (default: 60000)" in text
     )
+
+
+def test_view_of_a_map_of_another_method(inputs: dict[str, Path], capsys) -> None:
+    """A method without map points (nearest-frame) is drawn with the scene's mapping path; its name
+    comes from the map's format and leads the title."""
+    scene = Scene(inputs["scene"])
+    create_method("nearest-frame").build_map(scene.sequence("mapping"), inputs["tmp"] / "nf")
+    out = inputs["tmp"] / "nf.html"
+    argv = ["view", str(inputs["tmp"] / "nf"), "--out", str(out)]
+    assert main(argv) == 2
+    assert "method 'nearest-frame' keeps no 3D points it can draw" in capsys.readouterr().err
+    assert main([*argv, "--scene", str(inputs["scene"]), "--results", str(inputs["poses"])]) == 0
+    assert capsys.readouterr().out.startswith("nearest-frame: keeps no 3D points; 2/3 queries returned a pose")
+    assert "mapping path (6 frames)" in [t["name"] for t in figure_traces(out.read_text())]
+
+
+def test_view_needs_a_method_for_a_format_no_method_has(inputs: dict[str, Path], capsys) -> None:
+    mapfile.write_file_set(inputs["tmp"] / "odd", "odd-map", 1, {"x.bin": b"1"})
+    argv = ["view", str(inputs["tmp"] / "odd"), "--out", str(inputs["tmp"] / "v.html")]
+    assert main(argv) == 2
+    assert "no method is registered for map format 'odd-map': give it with --method" in capsys.readouterr().err
+    assert main([*argv, "--method", "nope"]) == 2
+    assert "unknown method 'nope'" in capsys.readouterr().err
+    assert main([*argv, "--method", "sift-pnp"]) == 2  # the method's own reader refuses the format
+    assert "sift-pnp-map" in capsys.readouterr().err

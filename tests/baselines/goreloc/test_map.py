@@ -75,3 +75,12 @@ def test_an_empty_map_round_trips(world_map, tmp_path):
     empty.save(tmp_path / "m")
     back = GORelocMap.load(tmp_path / "m")
     assert len(back.ids) == 0 and back.adjacency().shape == (0, 0) and len(back.labels) == 0
+
+
+def test_map_draws_each_ellipsoid_as_points_on_its_surface(world_map):
+    mp = world_map.drawn(per_object=50)
+    assert len(mp.points) == 50 * len(world_map.ids) and sorted(mp.labels) == sorted(world_map.ids.tolist())
+    for k, i in enumerate(world_map.ids):
+        local = (mp.points[mp.group == i] - world_map.centres[k]) @ world_map.rotations[k]
+        assert np.allclose(((local / world_map.axes[k]) ** 2).sum(1), 1.0)
+    assert mp.labels[int(world_map.ids[0])].startswith(f"object {world_map.ids[0]}: ")

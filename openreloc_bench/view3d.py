@@ -1,15 +1,15 @@
-"""An OpenReLoc map in 3D as a plotly figure: what ``openreloc-bench view`` writes as one HTML file.
+"""A method's map in 3D as a plotly figure: what ``openreloc-bench view`` writes as one HTML file.
 
-The figure holds the map's landmarks (their points, coloured per landmark; the ones invalid-object
-filtering removed in grey), its reference frames' cameras, optionally the scene's mapping path and a
-run's query cameras: each estimate joined to the true camera by a line, green within
-:data:`RECALL_RADIUS_M` and red beyond it. Landmark points are subsampled to a cap so that a big map
-stays quick to draw; an estimate far outside everything else is drawn at the edge of the view (and
-counted in the legend) instead of shrinking the map to a dot.
+The figure holds what the map keeps in 3D (:class:`~openreloc_bench.methods.MapPoints`: its points,
+coloured per group, e.g. per landmark or per mapping frame; the groups the method set aside in grey),
+its cameras, optionally the scene's mapping path and a run's query cameras: each estimate joined to the
+true camera by a line, green within :data:`RECALL_RADIUS_M` and red beyond it. Points are subsampled to
+a cap so that a big map stays quick to draw; an estimate far outside everything else is drawn at the
+edge of the view (and counted in the legend) instead of shrinking the map to a dot.
 
-    fig = map_figure(ObjectMap.load("maps/smoke"), mapping=scene.sequence("mapping").poses,
+    fig = map_figure(method.map_points(map_dir), mapping=scene.sequence("mapping").poses,
                      true_poses=gt, estimates=read_results("poses.txt"))
-    fig.write_html("smoke.html", include_plotlyjs=True)
+    fig.write_html("map.html", include_plotlyjs=True)
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from openreloc_bench import geometry
-from openreloc_bench.openreloc.map import ObjectMap
+from openreloc_bench.methods import MapPoints
 
 if TYPE_CHECKING:
     import plotly.graph_objects as go
@@ -29,21 +29,21 @@ if TYPE_CHECKING:
 RECALL_RADIUS_M = 0.5
 """An estimate within this distance of the true camera is drawn green (the benchmark's recall@50cm)."""
 DEFAULT_MAX_POINTS = 60_000
-"""Landmark points drawn at most (each landmark keeps a share proportional to its size, at least one)."""
+"""Map points drawn at most (each group keeps a share proportional to its size, at least one point)."""
 VIEW_MARGIN_M = 1.0
 """How far beyond the map, the cameras and the true query cameras the view reaches; estimates beyond
 that are drawn at its edge."""
 MAX_MAPPING_FRUSTUMS = 12
 """Mapping cameras drawn as frustums (evenly spaced along the path; the path itself shows every frame)."""
 
-VALID_GROUP, FILTERED_GROUP = "landmarks", "filtered landmarks"
-FILTERED_COLOR = "rgb(170,170,170)"
+POINTS_GROUP, MUTED_GROUP = "points", "muted"
+MUTED_COLOR = "rgb(170,170,170)"
 WITHIN_COLOR, BEYOND_COLOR, TRUE_COLOR, MISSED_COLOR = "rgb(34,160,70)", "rgb(215,40,40)", "rgb(20,20,20)", "gray"
 
 
 def point_strides(counts: Sequence[int], cap: int) -> list[int]:
-    """Per landmark, the stride ``points[::stride]`` that keeps the total near ``cap``: every point when
-    all of them fit, else a share proportional to each landmark's size (never less than one point)."""
+    """Per group, the stride ``points[::stride]`` that keeps the total near ``cap``: every point when
+    all of them fit, else a share proportional to each group's size (never less than one point)."""
     total = sum(counts)
     if total <= cap:
         return [1] * len(counts)
@@ -81,28 +81,25 @@ def _palette() -> list[str]:
     return list(qualitative.Dark24) + list(qualitative.Light24)
 
 
-def landmark_traces(m: ObjectMap, max_points: int = DEFAULT_MAX_POINTS) -> tuple[list[go.Scatter3d], np.ndarray]:
-    """One trace per landmark (hover: id, category, valid or filtered), grouped in the legend as the
-    valid and the filtered landmarks; and the (N, 3) points drawn."""
+def point_traces(mp: MapPoints, max_points: int = DEFAULT_MAX_POINTS) -> tuple[list[go.Scatter3d], np.ndarray]:
+    """The map's points as two traces, each point coloured by its group with the group's hover text: the
+    groups drawn in colour, and the muted ones in grey; and the (N, 3) points drawn."""
     import plotly.graph_objects as go
 
-    valid = m.valid_ids()
-    ids = valid + sorted(set(m.landmarks) - set(valid))  # the valid ones first in the legend
-    strides = point_strides([len(m.landmarks[i].points) for i in ids], max_points)
-    n_filtered = len(ids) - len(valid)
+    groups, inverse = np.unique(mp.group, return_inverse=True)
+    members = np.split(np.argsort(inverse, kind="stable"), np.cumsum(np.bincount(inverse, minlength=len(groups)))[:-1])
+    strides = point_strides([len(m) for m in members], max_points)
+    keep = np.sort(np.concatenate([m[::s] for m, s in zip(members, strides)] or [np.zeros(0, np.int64)]))
     colors = _palette()
-    color = {lid: colors[k % len(colors)] for k, lid in enumerate(valid)}
     traces, drawn = [], []
-    shown_group: set[str] = set()
-    for lid, stride in zip(ids, strides):
-        lm = m.landmarks[lid]
-        pts = np.asarray(lm.points, dtype=np.float64)[::stride].reshape(-1, 3)
-        drawn.append(pts)
-        group = VALID_GROUP if lm.valid else FILTERED_GROUP
-        first = group not in shown_group
-        shown_group.add(group)
-        legend = f"landmarks ({len(valid)})" if lm.valid else f"filtered landmarks ({n_filtered}: walls, floors...)"
-        state = "valid" if lm.valid else "filtered (invalid object)"
+    name, muted_name, _ = mp.names
+    for muted in (False, True):
+        rows = keep[np.isin(mp.group[keep], list(mp.muted)) == muted]
+        if not len(rows):
+            continue
+        pts, g = np.asarray(mp.points, np.float64)[rows].reshape(-1, 3), mp.group[rows]
+        shown = [k for k in groups if (k in mp.muted) == muted]
+        rank = {k: i for i, k in enumerate(shown)}
         traces.append(
             go.Scatter3d(
                 x=pts[:, 0],
@@ -110,19 +107,17 @@ def landmark_traces(m: ObjectMap, max_points: int = DEFAULT_MAX_POINTS) -> tuple
                 z=pts[:, 2],
                 mode="markers",
                 marker={
-                    "size": 2 if lm.valid else 1.5,
-                    "color": color.get(lid, FILTERED_COLOR),
-                    "opacity": 0.8 if lm.valid else 0.35,
+                    "size": 1.5 if muted else 2,
+                    "color": MUTED_COLOR if muted else [colors[rank[k] % len(colors)] for k in g],
+                    "opacity": 0.35 if muted else 0.8,
                 },
-                name=legend if first else f"landmark {lid}",
-                legendgroup=group,
-                showlegend=first,
-                hovertemplate=(
-                    f"landmark {lid}: {lm.category or 'no category'}<br>{state}, {len(lm.points)} points, "
-                    f"seen in {lm.n_views} frame{'' if lm.n_views == 1 else 's'}<extra></extra>"
-                ),
+                name=f"{muted_name if muted else name} ({len(shown)})",
+                legendgroup=MUTED_GROUP if muted else POINTS_GROUP,
+                text=[mp.labels.get(int(k), str(k)) for k in g],
+                hovertemplate="%{text}<extra></extra>",
             )
         )
+        drawn.append(pts)
     return traces, (np.concatenate(drawn) if drawn else np.zeros((0, 3)))
 
 
@@ -181,14 +176,14 @@ def query_errors(true_poses: dict[str, np.ndarray], estimates: dict[str, np.ndar
 
 
 def map_figure(
-    m: ObjectMap,
+    mp: MapPoints,
     mapping: np.ndarray | None = None,
     true_poses: dict[str, np.ndarray] | None = None,
     estimates: dict[str, np.ndarray] | None = None,
     max_points: int = DEFAULT_MAX_POINTS,
     title: str | None = None,
 ) -> go.Figure:
-    """The 3D figure of map ``m``.
+    """The 3D figure of a map's points ``mp``.
 
     ``mapping``: (N, 4, 4) T_wc of the scene's mapping frames (the path, a few frustums). ``true_poses``:
     query name -> true T_wc, for every query of the split; ``estimates``: query name -> estimated T_wc,
@@ -202,13 +197,12 @@ def map_figure(
     unknown = sorted(set(estimates) - set(true_poses))
     if unknown:
         raise ValueError(f"estimate of '{unknown[0]}' has no true pose")
-    size = (m.width, m.height)
-    traces, extent_pts = landmark_traces(m, max_points)
+    traces, extent_pts = point_traces(mp, max_points)
     extent = [extent_pts]
-    if m.reference_frames:
-        T = np.stack([rf.T_wc for rf in m.reference_frames])
-        hover = [f"reference frame {rf.index}: {len(rf.boxes)} landmarks in view" for rf in m.reference_frames]
-        traces += _cameras(T, m.K, size, 0.15, f"reference frames ({len(T)})", "rgb(31,119,180)", "rf", hover, 1.5)
+    if len(mp.cameras):
+        T, name = np.asarray(mp.cameras).reshape(-1, 4, 4), mp.names[2]
+        hover = [f"{name}: {k}" for k in range(len(T))]
+        traces += _cameras(T, mp.K, mp.size, 0.15, f"{name} ({len(T)})", "rgb(31,119,180)", "rf", hover, 1.5)
         extent.append(T[:, :3, 3])
     if mapping is not None and len(mapping):
         mapping = np.asarray(mapping).reshape(-1, 4, 4)
@@ -229,15 +223,15 @@ def map_figure(
         )
         every = np.unique(np.linspace(0, len(c) - 1, min(MAX_MAPPING_FRUSTUMS, len(c))).round().astype(int))
         frust = _cameras(
-            mapping[every], m.K, size, 0.25, "mapping cameras", "rgb(255,127,14)", "mapping", [], width=2.0
+            mapping[every], mp.K, mp.size, 0.25, "mapping cameras", "rgb(255,127,14)", "mapping", [], width=2.0
         )
         frust[0].showlegend = False
         traces.append(frust[0])  # the centres are on the path already
         extent.append(c)
-    traces += _query_traces(m, true_poses, estimates, extent)
+    traces += _query_traces(mp, true_poses, estimates, extent)
     fig = go.Figure(traces)
     fig.update_layout(
-        title={"text": title or default_title(m, true_poses, estimates), "font": {"size": 14}},
+        title={"text": title or default_title(mp, true_poses, estimates), "font": {"size": 14}},
         template="plotly_white",
         margin={"l": 0, "r": 0, "t": 40, "b": 0},
         legend={"itemsizing": "constant"},
@@ -252,13 +246,12 @@ def map_figure(
 
 
 def _query_traces(
-    m: ObjectMap, true_poses: dict[str, np.ndarray], estimates: dict[str, np.ndarray], extent: list[np.ndarray]
+    mp: MapPoints, true_poses: dict[str, np.ndarray], estimates: dict[str, np.ndarray], extent: list[np.ndarray]
 ) -> list[go.Scatter3d]:
     import plotly.graph_objects as go
 
     if not true_poses:
         return []
-    size = (m.width, m.height)
     names = sorted(true_poses)
     T_true = np.stack([true_poses[n] for n in names])
     pts = np.concatenate([e.reshape(-1, 3) for e in [*extent, T_true[:, :3, 3]]])
@@ -273,7 +266,7 @@ def _query_traces(
     ):
         if group:
             T = np.stack([true_poses[n] for n in group])
-            traces += _cameras(T, m.K, size, 0.12, label, color, key, [hover.format(n) for n in group])
+            traces += _cameras(T, mp.K, mp.size, 0.12, label, color, key, [hover.format(n) for n in group])
     for within in (True, False):
         group = [n for n in returned if (errors[n][0] < RECALL_RADIUS_M) == within]
         if not group:
@@ -290,7 +283,7 @@ def _query_traces(
         key = f"est-{'in' if within else 'out'}"
         inside = ~outside
         if inside.any():  # the estimated frustums of the estimates in view; the others are a marker
-            x, y, z = frustum_lines(T_est[inside], m.K, size[0], size[1], 0.12)
+            x, y, z = frustum_lines(T_est[inside], mp.K, mp.size[0], mp.size[1], 0.12)
             traces.append(
                 go.Scatter3d(
                     x=x,
@@ -348,12 +341,9 @@ def _query_traces(
     return traces
 
 
-def default_title(m: ObjectMap, true_poses: dict[str, np.ndarray], estimates: dict[str, np.ndarray]) -> str:
-    """One line: the map's size and, with queries, how many returned a pose and the recall@50cm."""
-    text = (
-        f"{len(m.landmarks)} landmarks ({len(m.valid_ids())} valid), {len(m.reference_frames)} reference frames, "
-        f"{sum(len(lm.points) for lm in m.landmarks.values())} points"
-    )
+def default_title(mp: MapPoints, true_poses: dict[str, np.ndarray], estimates: dict[str, np.ndarray]) -> str:
+    """One line: the map's content and, with queries, how many returned a pose and the recall@50cm."""
+    text = mp.summary or f"{len(mp.points)} points, {len(mp.cameras)} cameras"
     if true_poses:
         errors = query_errors(true_poses, estimates)
         within = sum(te < RECALL_RADIUS_M for te, _ in errors.values())

@@ -1,13 +1,17 @@
-"""The 3D figure of a map (``view``): its traces, the point cap, the frustums and the estimates out of view."""
+"""The 3D figure of a map's points (``view``): its traces, the point cap, the frustums and the estimates out of view."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from openreloc_bench import geometry
-from openreloc_bench.openreloc import view3d
-from tests.openreloc.test_map import make_map
+from openreloc_bench import geometry, view3d
+from tests.openreloc.test_map import make_map as make_object_map
+
+
+def make_map():
+    """An OpenReLoc map's points: 4 valid landmarks and a filtered one (a wall), 50 points each."""
+    return make_object_map().drawn()
 
 
 def traces_by_name(fig) -> dict[str, list]:
@@ -58,17 +62,16 @@ def test_map_figure_draws_landmarks_cameras_and_the_mapping_path() -> None:
     names = traces_by_name(fig)
     assert legend(fig) == [
         "landmarks (4)",
-        "filtered landmarks (1: walls, floors...)",
+        "filtered landmarks (walls, floors...) (1)",
         "reference frames (2)",
         "mapping path (20 frames)",
     ]
     assert all(t.type == "scatter3d" for t in fig.data)
-    first = names["landmarks (4)"][0]
-    assert first.hovertemplate.startswith("landmark 1: cat1<br>valid, 50 points, seen in 1 frame<")
-    filtered = names["filtered landmarks (1: walls, floors...)"][0]
-    assert "landmark 5: wall<br>filtered" in filtered.hovertemplate and filtered.marker.color == view3d.FILTERED_COLOR
-    colors = {t.marker.color for t in fig.data if t.legendgroup == view3d.VALID_GROUP}
-    assert len(colors) == 4  # one per valid landmark
+    (valid,) = names["landmarks (4)"]
+    assert valid.text[0] == "landmark 1: cat1<br>valid, 50 points, seen in 1 frame"
+    (filtered,) = names["filtered landmarks (walls, floors...) (1)"]
+    assert filtered.text[0].startswith("landmark 5: wall<br>filtered") and filtered.marker.color == view3d.MUTED_COLOR
+    assert len(set(valid.marker.color)) == 4  # one colour per valid landmark
     assert len(names["mapping path (20 frames)"][0].x) == 20
     mapping_frustums = [t for t in fig.data if t.legendgroup == "mapping" and t.mode == "lines"][0]
     assert sum(v is None for v in mapping_frustums.x) == view3d.MAX_MAPPING_FRUSTUMS
@@ -77,7 +80,7 @@ def test_map_figure_draws_landmarks_cameras_and_the_mapping_path() -> None:
 
 def test_map_figure_caps_the_points_drawn() -> None:
     fig = view3d.map_figure(make_map(), max_points=40)
-    drawn = sum(len(t.x) for t in fig.data if t.legendgroup in (view3d.VALID_GROUP, view3d.FILTERED_GROUP))
+    drawn = sum(len(t.x) for t in fig.data if t.legendgroup in (view3d.POINTS_GROUP, view3d.MUTED_GROUP))
     assert 5 <= drawn <= 45
 
 

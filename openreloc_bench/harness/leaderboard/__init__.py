@@ -16,11 +16,12 @@ from pathlib import Path
 
 from openreloc_bench.data import io, paths
 from openreloc_bench.errors import ConfigError
-from openreloc_bench.harness.leaderboard.pages import to_html, to_markdown
+from openreloc_bench.harness.leaderboard.pages import WHY_CAPTIONS, to_html, to_markdown
 from openreloc_bench.harness.leaderboard.plots import (
     board_scene,
     method_colors,
     plot_cumulative,
+    plot_headline_recall,
     plot_recall_vs_difficulty,
     plot_recall_vs_lighting,
     plot_recall_vs_map_size,
@@ -70,6 +71,8 @@ def write_leaderboard(results: list[Path], out: Path, data: Path | None = None, 
     plot_recall_vs_map_size(shown, plots[-1], colors)
     if plot_recall_vs_lighting(shown, plots_dir / "recall_vs_lighting.png", colors):
         plots.append(plots_dir / "recall_vs_lighting.png")
+    if plot_headline_recall(b, plots_dir / "headline_recall.png", colors):
+        plots.insert(0, plots_dir / "headline_recall.png")
     for scene in sorted(q.loc[q["split"] == "query", "scene"].unique()):
         plots.append(plots_dir / f"topdown_{scene}.png")
         specs = q.loc[q["scene"] == scene, "spec_hash"] if "spec_hash" in q else []
@@ -89,11 +92,10 @@ def write_leaderboard(results: list[Path], out: Path, data: Path | None = None, 
     drops = robustness_drops(q)
     ablations = copy_ablation_tables(results, out)
     abl = [p.name for p in ablations]
-    io.atomic_write_text(out / "leaderboard.md", to_markdown(b, scenes, versions, rel, card_link, drops, abl))
-    io.atomic_write_text(
-        out / "index.html",
-        to_html(b, [str(p.relative_to(out)) for p in plots], versions, rel, card_link, drops, abl),
-    )
+    pictures = [str(p.relative_to(out)) for p in plots]
+    why = [p for p in pictures if Path(p).name in WHY_CAPTIONS]
+    io.atomic_write_text(out / "leaderboard.md", to_markdown(b, scenes, versions, rel, card_link, drops, abl, why))
+    io.atomic_write_text(out / "index.html", to_html(b, pictures, versions, rel, card_link, drops, abl, why))
     return [
         out / "leaderboard.md",
         out / "leaderboard.csv",

@@ -56,6 +56,22 @@ def _ablation_links(ablations: Sequence[str]) -> list[tuple[str, str]]:
     return [(Path(p).stem.removeprefix("ablations_"), p) for p in ablations]
 
 
+WHY_CAPTIONS = {
+    "headline_recall.png": "The verdict's numbers: methods whose whiskers overlap are level, not ahead.",
+    "cumulative_translation.png": "Where the methods part: the share of queries within each translation "
+    "error. A curve that rises late is coarse; one that levels off low fails often.",
+    "recall_vs_lighting.png": "What the light takes: recall as the query splits darken.",
+}
+"""The plots that explain a verdict, in the order a board shows them first ("Why"), with what to read off each."""
+
+
+def _why_markdown(why: Sequence[str]) -> list[str]:
+    lines = ["", "## Why", ""]
+    for p in why:
+        lines += [f"![{Path(p).stem}]({p})", "", WHY_CAPTIONS.get(Path(p).name, ""), ""]
+    return lines[:-1]
+
+
 def to_markdown(
     b: pd.DataFrame,
     scenes: pd.DataFrame,
@@ -64,8 +80,10 @@ def to_markdown(
     card: str = "",
     drops: pd.DataFrame | None = None,
     ablations: Sequence[str] = (),
+    why: Sequence[str] = (),
 ) -> str:
-    """The board: its verdict (:func:`verdict`), links to the data's ``card`` and to the ``ablations``
+    """The board: its verdict (:func:`verdict`), the plots that explain it (``why``, :data:`WHY_CAPTIONS`),
+    links to the data's ``card`` and to the ``ablations``
     tables (paths relative to the board, where there are some), one table per track (the predicted
     track's first), the robustness table (``drops``: :func:`~.rows.robustness_drops`), per-scene tables,
     map sizes and the recall-vs-difficulty plots (``difficulty_plots``, paths relative to the board)."""
@@ -83,6 +101,8 @@ def to_markdown(
         + (f" The data: [its dataset card]({card})." if card else "")
         + "".join(f" Ablations of {ABLATED_METHOD}, {t} track: [{p}]({p})." for t, p in _ablation_links(ablations)),
     ]
+    if why:
+        lines += _why_markdown(why)
     for title, t in _by_track(b):
         lines += [
             "",
@@ -184,16 +204,25 @@ def to_html(
     card: str = "",
     drops: pd.DataFrame | None = None,
     ablations: Sequence[str] = (),
+    why: Sequence[str] = (),
 ) -> str:
-    """The sortable page: the board's verdict, links to the data's ``card`` and the ``ablations`` tables,
-    its tables (the headline split's rows first, the others folded), the robustness table (``drops``), ``plots`` side by side and the recall-vs-difficulty
-    plots full width."""
+    """The sortable page: the board's verdict, the plots that explain it (``why``), links to the data's
+    ``card`` and the ``ablations`` tables, its tables (the headline split's rows first, the others folded),
+    the robustness table (``drops``), the other ``plots`` side by side and the recall-vs-difficulty plots
+    full width."""
     shown = shown_columns(b)
     head = [BOARD_COLUMNS[c] for c in shown]
     tables = "".join(_track_table(title, head, t, shown) for title, t in _by_track(b))
     if drops is not None and not drops.empty:
         tables += _html_table(ROBUSTNESS_TITLE, list(drops.columns), drops.values.tolist())
-    imgs = "".join(_figure(p, wide=Path(p).name.startswith(WIDE_PLOTS)) for p in plots)
+    imgs = "".join(_figure(p, wide=Path(p).name.startswith(WIDE_PLOTS)) for p in plots if p not in why)
+    why_html = "".join(
+        f"<div class=why>{_figure(p, wide=False)}<p>{html.escape(WHY_CAPTIONS.get(Path(p).name, ''))}</p></div>"
+        for p in why
+    )
+    if why_html:
+        why_html = f'<h2>Why</h2>\n<div class="whys">{why_html}</div>\n'
+
     if difficulty_plots:
         imgs += f'<h2 class="clear">Recall vs difficulty</h2>\n<p>{html.escape(DIFFICULTY_TEXT)}</p>\n'
         imgs += "".join(_figure(p, wide=True) for p in difficulty_plots)
@@ -218,12 +247,14 @@ tr:nth-child(even) {{ background: #fafafa; }}
 img {{ max-width: 48%; float: left; margin: 1%; }}
 img.wide {{ max-width: 98%; float: none; }} .clear {{ clear: both; }}
 .verdict {{ font-size: 16px; background: #eef4fb; border-left: 4px solid #2a6ebb; padding: 8px 12px; }}
+.whys {{ display: flex; flex-wrap: wrap; gap: 1em; }} .why {{ flex: 1 1 30%; min-width: 320px; }}
+.why img {{ max-width: 100%; float: none; margin: 0; }} .why p {{ margin: 0.2em 0; font-size: 14px; }}
 </style></head><body>
 <h1>{html.escape(_title(versions))}</h1>
 <p class="verdict"><strong>{html.escape(verdict_lead())}:</strong> {html.escape(verdict(b))}</p>
 <p>Recall = share of all queries (failed queries count), with its 95% interval (bootstrap over scenes, then
 queries). MTE/MRE = mean error of the queries within the threshold. Click a column header to sort. {html.escape(provenance(b))}{card_link}</p>
-{tables}{imgs}
+{why_html}{tables}{imgs}
 <script>{_SORT_JS}</script>
 </body></html>
 """

@@ -78,6 +78,40 @@ def plot_cumulative(
     return ax
 
 
+HEADLINE_RECALLS = {"recall_50cm": "50 cm", "recall_25cm": "25 cm", "recall_5cm_5deg": "5 cm, 5°"}
+"""The recalls the headline plot shows: the paper's two thresholds and the field's precise one."""
+
+
+def plot_headline_recall(b: pd.DataFrame, path: Path, colors: dict[str, Any] | None = None) -> plt.Axes | None:
+    """The verdict in a picture: recall on the headline split at each of :data:`HEADLINE_RECALLS` per
+    (method, track), bars with their 95% intervals (bars whose whiskers overlap are level). None when no
+    method ran the headline split."""
+    s = b[b["split"] == HEADLINE_SPLIT]
+    if s.empty:
+        return None
+    s = s.assign(_rank=s["track"].map(track_rank)).sort_values(["_rank", "method"], kind="stable")
+    cols = [c for c in HEADLINE_RECALLS if c in s]
+    colors = colors or method_colors(s["method"])
+    y, height = np.arange(len(cols)), 0.8 / len(s)
+    fig, ax = plt.subplots(figsize=(8, 1.2 + 0.35 * len(s) * len(cols)))
+    for k, (_, r) in enumerate(s.iterrows()):
+        values = np.array([r[c] for c in cols], dtype=float)
+        lo = np.array([r.get(f"{c}_lo", np.nan) for c in cols], dtype=float)
+        hi = np.array([r.get(f"{c}_hi", np.nan) for c in cols], dtype=float)
+        err = np.nan_to_num(np.vstack([values - lo, hi - values]), nan=0.0).clip(0)
+        look = {"color": colors[r["method"]], "hatch": TRACK_HATCHES.get(r["track"], "xx"), "edgecolor": "white"}
+        offset = y - 0.4 + (k + 0.5) * height
+        ax.barh(offset, values, height, xerr=err, label=f"{r['method']} ({r['track']})", capsize=3, **look)
+        for yy, v in zip(offset, values):
+            ax.text(v + 1, yy, f"{v:.1f}", va="center", fontsize=7)
+    ax.set_yticks(y, [f"R@{HEADLINE_RECALLS[c]}" for c in cols])
+    ax.invert_yaxis()
+    ax.set(xlabel="recall [%] with its 95% interval", xlim=(0, 105), title=f"Recall on the {HEADLINE_SPLIT} split")
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    _save(fig, path)
+    return ax
+
+
 def plot_scene_recall(scenes: pd.DataFrame, path: Path, colors: dict[str, Any] | None = None) -> plt.Axes:
     """Recall@50cm (light) and @25cm (dark) per scene and (method, track) on the plain query split: the
     method's colour, the track's hatch. Returns the plot."""

@@ -107,3 +107,23 @@ def test_boards_cite_each_methods_paper_and_code(tmp_path: Path) -> None:
     assert "| unknown-method | - |" in md  # a name no method is registered under cites nothing
     url = "https://github.com/cvg/Hierarchical-Localization"
     assert f'<a href="{url}">{url}</a>' in page
+
+
+def test_boards_open_with_the_plots_that_explain_the_verdict(tmp_path: Path) -> None:
+    out = tmp_path / "board"
+    files = write_leaderboard(
+        [results_dir(tmp_path / "r", "sift-pnp"), results_dir(tmp_path / "u", "nearest-frame")], out
+    )
+    assert out / "plots" / "headline_recall.png" in files
+    md, page = (out / "leaderboard.md").read_text(), (out / "index.html").read_text()
+    why = md.index("## Why")
+    assert why < md.index("## Methods that read no masks")
+    shown = [line for line in md[why:].split("\n## ")[0].splitlines() if line.startswith("![")]
+    assert shown == [
+        "![headline_recall](plots/headline_recall.png)",
+        "![cumulative_translation](plots/cumulative_translation.png)",
+        "![recall_vs_lighting](plots/recall_vs_lighting.png)",
+    ]
+    assert "methods whose whiskers overlap are level" in md
+    assert page.index("<h2>Why</h2>") < page.index("<table")
+    assert page.count('src="plots/headline_recall.png"') == 1  # not again among the other plots

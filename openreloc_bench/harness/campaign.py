@@ -48,14 +48,10 @@ class CampaignPlan:
     card_dir: str = "docs/cards"
     """Folder holding the suites' dataset cards (``openreloc-bench card``): each board links
     ``<card_dir>/<suite>.md`` where it is there."""
-    methods: list[str] = field(
-        default_factory=lambda: [
-            "openreloc", "openreloc-paper", "goreloc", "sift-pnp", "orb-reloc", "retrieval", "posenet", "nearest-frame",
-            "openreloc-oracle-association",
-        ]
-    )  # fmt: skip
-    """Registered method names, each run on every suite."""
-    oracle_only: list[str] = field(default_factory=lambda: ["openreloc-oracle-association"])
+    methods: list[str] = field(default_factory=list)
+    """Registered method names, each run on every suite: the plan names them (no list here to fall out of
+    step with it)."""
+    oracle_only: list[str] = field(default_factory=list)
     """Diagnostics that read the dataset's masks at query time: where the plan runs them, they run on the
     oracle-mask track only."""
     tracks: list[str] = field(default_factory=lambda: ["predicted", "oracle-mask"])
@@ -70,7 +66,7 @@ class CampaignPlan:
     """Suites on which the paper's ablation rows of OpenReLoc run (headline split, first seed)."""
     ablation_track: str = "oracle-mask"
     """Track of the ablation rows (the upper bound isolates each part from the segmenter's errors)."""
-    serial_methods: list[str] = field(default_factory=lambda: ["posenet"])
+    serial_methods: list[str] = field(default_factory=list)
     """Methods whose jobs run one at a time under the local executor: each trains with every core, and
     beside another job it is several times slower."""
     plugins: list[str] = field(default_factory=list)

@@ -169,6 +169,7 @@ def test_another_commit_or_a_dirty_tree_is_refused(
     ("change", "message"),
     [
         ({"methods": ["no-such-method"]}, "no-such-method"),
+        ({"methods": []}, "'methods' must name at least one entry"),  # no default list: the plan names them
         ({"splits": ["query", "mapping"]}, "unknown split 'mapping'"),
         ({"tracks": ["predicted", "predicted"]}, "each once"),
         ({"ablation_suites": ["elsewhere"]}, "not one of the plan's suites"),

@@ -136,6 +136,13 @@ def test_estimate_is_carried_by_the_agents_motion(make_env) -> None:
     np.testing.assert_allclose(_pose(obs), expected, atol=1e-5)
 
 
+def test_by_default_the_relocalizer_is_asked_every_fifth_step(make_env) -> None:
+    env = make_env("openreloc/ActiveReloc-v0", max_steps=20)
+    _, info = env.reset(seed=4)
+    asked = [info["relocalized"]] + [env.step(TURN_RIGHT)[4]["relocalized"] for _ in range(10)]
+    assert [i for i, fresh in enumerate(asked) if fresh] == [0, 5, 10]
+
+
 def _pose(obs: dict) -> np.ndarray:
     v = obs["estimate"].astype(np.float64)
     return geometry.qt_to_pose(v[3:], v[:3])

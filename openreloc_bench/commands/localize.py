@@ -3,12 +3,14 @@
 The result file is the benchmark format (``name qw qx qy qz tx ty tz`` of T_cw). A query the method
 cannot place (a failure, or an exception inside the method) is left out of the file and counted in
 the summary; it never stops the run. ``--diagnostics`` writes one JSON line per query (the method's
-diagnostics: matches, timings, explanation...). When the split has ground-truth poses the summary
+diagnostics: matches, timings, explanation...); ``--draw DIR`` one picture per query of what the method
+matched (its keypoints, kept or rejected by the pose, and its objects: :mod:`openreloc_bench.matchview`,
+like hloc's ``visualize_loc``). When the split has ground-truth poses the summary
 also prints recall@50/25 cm; the method never sees them. The file's header names the track: --track,
 or mask-free for a method that declares it reads no masks (it is given none).
 
   openreloc-bench localize --method openreloc --map maps/smoke --scene data/smoke-room \\
-      --split query --out poses.txt
+      --split query --out poses.txt [--draw matches/]
 """
 
 from __future__ import annotations
@@ -47,6 +49,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", type=Path, required=True, help="result file to write")
     add_track_argument(p, TRACK_HELP)
     p.add_argument("--diagnostics", type=Path, help="also write per-query diagnostics as JSON lines")
+    p.add_argument("--draw", type=Path, metavar="DIR", help="also draw what the method matched in each query (PNGs)")
 
 
 def localize_split(
@@ -105,6 +108,8 @@ def run(args: argparse.Namespace) -> int:
             paths.check_output_file(out, [args.scene, args.map], flag)
     if args.diagnostics is not None and args.diagnostics.resolve() == args.out.resolve():
         raise ConfigError(f"--diagnostics and --out are the same file {args.out}; give two paths")
+    if args.draw is not None:
+        paths.check_output_folder(args.draw, [args.scene, args.map], "--draw")
     method = create_method(args.method, **method_overrides(args))
     scene = Scene(args.scene)
     track = recorded_track(method, args.track)
@@ -142,6 +147,13 @@ def run(args: argparse.Namespace) -> int:
         ]
         io.atomic_write_text(args.diagnostics, "\n".join(lines) + "\n")
     gt = dict(zip(seq.names, seq.poses))
+    if args.draw is not None:
+        from openreloc_bench.matchview import draw_query
+
+        args.draw.mkdir(parents=True, exist_ok=True)
+        for frame, r in zip(seq, records):
+            draw_query(frame.color, r, gt.get(r.name), args.method, args.draw / f"{r.name.replace('/', '_')}.png")
+        print(f"{len(records)} pictures of what {args.method} matched in {args.draw}")
     for line in summary(records, gt):
         print(line)
     print(f"poses written to {args.out}")

@@ -37,6 +37,7 @@ from openreloc_bench import geometry
 from openreloc_bench.bars import tqdm
 from openreloc_bench.config import check_ranges
 from openreloc_bench.data.types import SceneSequence
+from openreloc_bench.methods import DRAWN_POINTS, drawn_points
 from openreloc_bench.vision.absolute_pose import AbsolutePoseConfig, estimate_absolute_pose
 from openreloc_bench.vision.local_features import SiftConfig, extract_sift, lift, root_sift
 
@@ -313,6 +314,7 @@ class AnchorIndex:
         owners = self.anchors.landmark[rows[mapped[pose.inliers]]]
         ids, counts = np.unique(owners, return_counts=True)
         diag["inliers"] = pose.n_inliers
+        diag[DRAWN_POINTS] = drawn_points(feats.xy[query], pose.inliers)
         by_landmark = dict(zip(ids.tolist(), counts.tolist()))
         return AnchorPose(
             pose.T_wc, pose.n_inliers, len(query), by_landmark, feats.xy[query], self.anchors.xyz[rows[mapped]]

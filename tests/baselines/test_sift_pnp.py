@@ -10,7 +10,7 @@ from baselines.features import FeatureMap
 from baselines.sift_pnp import MAP_FORMAT, MAP_VERSION, SiftPnP
 from openreloc_bench.data.scene import Scene
 from openreloc_bench.errors import ConfigError
-from openreloc_bench.methods import create_method
+from openreloc_bench.methods import DRAWN_POINTS, create_method
 from tests.baselines import contract
 
 NAME = "sift-pnp"
@@ -44,3 +44,12 @@ def test_few_keypoints_fail(built_map: Callable[[str], Path], scenes: tuple[Scen
 def test_config_validation(overrides: dict) -> None:
     with pytest.raises(ConfigError):
         create_method(NAME, **overrides)
+
+
+def test_the_drawn_keypoints_are_the_matches_and_the_kept_ones_the_inliers(
+    built_map: Callable[[str], Path], scenes: tuple[Scene, Scene]
+) -> None:
+    query, _ = contract.query_of(scenes[0], "query", 0)
+    res = contract.loaded(NAME, built_map(NAME)).localize(query)
+    points = np.asarray(res.diagnostics[DRAWN_POINTS])
+    assert 0 < len(points) <= res.diagnostics["matches"] and points[:, 2].sum() == res.diagnostics["inliers"]

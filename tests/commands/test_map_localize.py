@@ -170,3 +170,14 @@ def test_map_records_its_track_and_localize_refuses_another(
         assert "is a map of the predicted track, not of the oracle-mask track" in err and "\n" not in err
     assert main(args) == 0
     assert f"# track {built}" in out.read_text()
+
+
+def test_localize_draws_each_query_it_was_asked_about(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    scene = write_tiny_scene(tmp_path / "tiny")
+    assert main(["map", "--method", "nearest-frame", "--scene", str(scene), "--out", str(tmp_path / "m")]) == 0
+    argv = ["localize", "--method", "nearest-frame", "--map", str(tmp_path / "m"), "--scene", str(scene)]
+    assert main([*argv, "--out", str(tmp_path / "p.txt"), "--draw", str(tmp_path / "seen")]) == 0
+    assert "3 pictures of what nearest-frame matched in" in capsys.readouterr().out
+    pictures = sorted(p.name for p in (tmp_path / "seen").iterdir())
+    assert pictures == ["query_000000.png", "query_000001.png", "query_000002.png"]
+    assert main([*argv, "--out", str(tmp_path / "q.txt"), "--draw", str(scene)]) == 2  # never into an input

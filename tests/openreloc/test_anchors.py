@@ -12,7 +12,7 @@ from generators.generate import generate_scene
 from generators.spec import SceneSpec
 from openreloc_bench import geometry
 from openreloc_bench.data.scene import Scene
-from openreloc_bench.methods import PoseEstimate, QueryFrame, create_method
+from openreloc_bench.methods import DRAWN_POINTS, PoseEstimate, QueryFrame, create_method
 from openreloc_bench.openreloc.anchors import (
     AnchorBuildConfig,
     AnchorConfig,
@@ -157,6 +157,8 @@ def test_queries_are_placed_by_their_keypoints_within_centimetres(room: tuple[Sc
             anchored += 1
             assert res.diagnostics["anchors"]["inliers"] >= method.config.anchors.min_inliers
             assert res.confidence == res.diagnostics["anchors"]["inliers"]
+            kept = [p for p in res.diagnostics["anchors"][DRAWN_POINTS] if p[2]]  # what `localize --draw` shows
+            assert len(kept) == res.diagnostics["anchors"]["inliers"]
             t, r = geometry.pose_errors(f.T_wc, res.T_wc)
             assert t < 0.05 and r < 2.0
     assert anchored >= len(seq) // 2

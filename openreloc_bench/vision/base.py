@@ -11,6 +11,7 @@ Backends register under a name (``@register_encoder("clip")``) and are built fro
 from __future__ import annotations
 
 import abc
+import importlib
 import inspect
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -141,6 +142,15 @@ register_segmenter = _registrar(_SEGMENTERS)
 
 
 _TABLES = {"encoder": _ENCODERS, "describer": _DESCRIBERS, "segmenter": _SEGMENTERS}
+BACKEND_MODULES = ("clip", "describe", "learned_segment", "offline", "segment")
+"""The modules under ``openreloc_bench.vision`` whose import registers the built-in backends."""
+
+
+def _load_backends() -> None:
+    """Import the built-in backends by module name (hloc's plugins-by-name): the registry does not import
+    its own package, whose ``__init__`` imports this module."""
+    for name in BACKEND_MODULES:
+        importlib.import_module(f"{__package__}.{name}")
 
 
 def check_backend(kind: str, name: str, options: dict[str, Any], partial: bool = False) -> Callable[..., Any]:
@@ -148,7 +158,7 @@ def check_backend(kind: str, name: str, options: dict[str, Any], partial: bool =
     are known to fit it (``partial``: the caller adds others, such as a describer's encoder): ConfigError
     otherwise. Configs call it when they are made, so that a mistyped name fails at once, not after a
     map's worth of work."""
-    from openreloc_bench import vision  # noqa: F401  (imports the backends so they register)
+    _load_backends()
 
     table = _TABLES[kind]
     if name not in table:
@@ -182,7 +192,7 @@ def segmenter_fingerprint(name: str, options: dict[str, Any]) -> str:
 
 
 def _fingerprint(table: dict[str, Callable[..., Any]], name: str, options: dict[str, Any]) -> str:
-    from openreloc_bench import vision  # noqa: F401  (imports the backends so they register)
+    _load_backends()
 
     fingerprint = getattr(table.get(name), "weights_fingerprint", None)
     return fingerprint(**options) if callable(fingerprint) else ""

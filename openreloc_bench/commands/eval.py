@@ -31,6 +31,7 @@ from openreloc_bench.errors import ConfigError
 from openreloc_bench.harness import evaluation, runner
 from openreloc_bench.harness.ablations import ABLATED_METHOD, ROBUSTNESS_ROWS
 from openreloc_bench.harness.executors import EXECUTORS
+from openreloc_bench.harness.suites import suite_file
 
 NAME = "eval"
 HELP = "evaluate methods on a scene suite (maps, queries, metrics)"
@@ -42,7 +43,9 @@ MAX_TIMEOUT_S = 1e7
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     src = p.add_mutually_exclusive_group(required=True)
-    src.add_argument("--suite", type=Path, help="suite YAML (scenes/<suite>.yaml); missing scenes are generated")
+    src.add_argument(
+        "--suite", help="suite YAML, or a bundled suite's name (smoke, demo, ...); missing scenes are generated"
+    )
     src.add_argument("--scenes", help="comma-separated scene directories already under --data (e.g. converted ScanNet)")
     p.add_argument("--methods", required=True, help="comma-separated registered method names")
     p.add_argument("--data", type=Path, required=True, help="dataset directory (one sub-directory per scene)")
@@ -164,4 +167,5 @@ def eval_config(args: argparse.Namespace) -> runner.EvalConfig:
 
 
 def run(args: argparse.Namespace) -> int:
-    return 1 if evaluation.main(eval_config(args), args.suite).errors else 0
+    suite = None if args.suite is None else suite_file(args.suite)
+    return 1 if evaluation.main(eval_config(args), suite).errors else 0

@@ -32,7 +32,9 @@ SUBMISSION_TRACKS = (*TRACKS, MASK_FREE)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("submission", type=Path, metavar="SUBMISSION_DIR")
+    p.add_argument(
+        "submission", type=Path, metavar="SUBMISSION_DIR", help="a folder of pose files, one per scene (see above)"
+    )
     p.add_argument("--data", type=Path, required=True, help="dataset directory (one sub-directory per scene)")
     p.add_argument(
         "--suite", type=Path, help="score every scene of this suite (default: the scenes the submission covers)"

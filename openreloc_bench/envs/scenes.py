@@ -29,13 +29,10 @@ from pathlib import Path
 
 from openreloc_bench.data.scene import Scene
 from openreloc_bench.errors import ConfigError, DataError
-from openreloc_bench.harness.suites import scene_state
+from openreloc_bench.harness.suites import scene_state, suite_file
 
 CACHE_ENV = "OPENRELOC_BENCH_CACHE"
 log = logging.getLogger(__name__)
-
-SUITES_DIR = Path(__file__).resolve().parents[2] / "scenes"
-"""The checkout's bundled suite YAMLs (``smoke``, ``validation``, ...)."""
 
 
 def cache_root(cache_dir: str | Path | None = None) -> Path:
@@ -75,12 +72,7 @@ def resolve_scene(scene: str | None, suite: str, cache_dir: str | Path | None = 
         raise ConfigError(f"scene '{scene}': not a generated scene directory (no scene.json)")
     from generators.spec import load_suite, spec_hash
 
-    suite_path = Path(suite).expanduser() if suite.endswith((".yaml", ".yml")) else SUITES_DIR / f"{suite}.yaml"
-    if not suite_path.is_file():
-        known = sorted(p.stem for p in SUITES_DIR.glob("*.yaml"))
-        raise ConfigError(
-            f"suite '{suite}' not found (a suite YAML, or one of: {', '.join(known) or 'none in this installation'})"
-        )
+    suite_path = suite_file(suite)
     suite_spec = load_suite(suite_path)
     specs = suite_spec.scene_specs()
     if scene is None:

@@ -18,6 +18,22 @@ from openreloc_bench.data.scene import (
 )
 from openreloc_bench.errors import ConfigError
 
+SUITES_DIR = Path(__file__).resolve().parents[2] / "scenes"
+"""The checkout's bundled suite YAMLs (``smoke``, ``demo``, ``validation``, ...)."""
+
+
+def suite_file(suite: str | Path) -> Path:
+    """A suite YAML (a path ending in .yaml / .yml), or the name of a bundled suite; ConfigError naming
+    the bundled ones when it is neither."""
+    text = str(suite)
+    path = Path(text).expanduser() if text.endswith((".yaml", ".yml")) else SUITES_DIR / f"{text}.yaml"
+    if not path.is_file():
+        known = sorted(p.stem for p in SUITES_DIR.glob("*.yaml"))
+        raise ConfigError(
+            f"suite '{text}' not found (a suite YAML, or one of: {', '.join(known) or 'none in this installation'})"
+        )
+    return path
+
 
 def suite_spec(suite_path: Path) -> Any:
     """The suite (``generators.spec.SuiteSpec``: name, purpose, description, scenes), validated."""

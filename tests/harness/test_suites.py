@@ -31,3 +31,24 @@ def test_a_scene_of_another_version_or_spec_is_refused(tmp_path: Path, info: dic
     with pytest.raises(ConfigError, match=message):
         ensure_suite_scenes(SMOKE, tmp_path)
     assert json.loads((scene / "scene.json").read_text())["spec_hash"] == "not-this-one"  # left as it was
+
+
+def test_a_suite_is_a_yaml_or_a_bundled_name(tmp_path: Path, capsys) -> None:
+    from openreloc_bench.cli import main
+    from openreloc_bench.harness.suites import SUITES_DIR, suite_file
+
+    assert suite_file("smoke") == SUITES_DIR / "smoke.yaml" and suite_file(SUITES_DIR / "demo.yaml").name == "demo.yaml"
+    with pytest.raises(ConfigError, match=r"suite 'nope' not found \(a suite YAML, or one of: .*demo.*smoke"):
+        suite_file("nope")
+    argv = [
+        "eval",
+        "--suite",
+        "nope",
+        "--methods",
+        "nearest-frame",
+        "--data",
+        str(tmp_path / "d"),
+        "--out",
+        str(tmp_path / "r"),
+    ]
+    assert main(argv) == 2 and "suite 'nope' not found" in capsys.readouterr().err

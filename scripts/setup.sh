@@ -32,7 +32,8 @@ if [ ! -f "$stamp" ]; then
   if [ "$(uname -sm)" = "Linux x86_64" ] && .venv/bin/pip show -q open3d >/dev/null 2>&1; then
     .venv/bin/pip uninstall -q -y open3d
   fi
-  .venv/bin/pip install -q -e ".[${EXTRAS}]"
+  # (setuptools warns on every editable install that a folder named like a package may shadow it)
+  PYTHONWARNINGS="ignore:Editable installation" .venv/bin/pip install -q -e ".[${EXTRAS}]"
   rm -f .venv/.openreloc-setup-*
   touch "$stamp"
 fi

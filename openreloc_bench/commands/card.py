@@ -21,7 +21,7 @@ ORDER = 13
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("suite", type=Path, help="suite YAML, e.g. scenes/smoke.yaml")
+    parser.add_argument("suite", help="suite YAML (e.g. scenes/smoke.yaml) or a bundled suite's name (smoke)")
     parser.add_argument("--data", type=Path, required=True, help="dataset directory holding the suite's scenes")
     parser.add_argument(
         "--out", type=Path, required=True, help="output directory: OUT/<suite>.md, pictures in OUT/<suite>/"
@@ -31,9 +31,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from openreloc_bench.data import paths
     from openreloc_bench.harness.card import write_card  # matplotlib: only when used
+    from openreloc_bench.harness.suites import suite_file
 
+    suite = suite_file(args.suite)
     paths.check_output(args.out, [args.data], "--out", fills=True)
-    files = write_card(args.suite, args.data, args.out)
+    files = write_card(suite, args.data, args.out)
     print(files[0])
     print(f"wrote {len(files) - 1} pictures to {files[0].with_suffix('')}")
     return 0

@@ -24,7 +24,6 @@ import shlex
 from pathlib import Path
 
 from openreloc_bench.commands.options import add_plugin_argument, comma_list
-from openreloc_bench.errors import ConfigError
 from openreloc_bench.tracks import ORACLE_MASK, PREDICTED
 
 NAME = "demo"
@@ -39,17 +38,19 @@ DEMO_SPLITS = ("query", "query_light3", "query_displaced")
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", type=Path, default=Path("runs/demo"), help="output directory")
-    p.add_argument("--suite", type=Path, default=DEMO_SUITE, help="suite YAML (default: the demo room)")
+    p.add_argument(
+        "--suite", default=str(DEMO_SUITE), help="suite YAML or a bundled suite's name (default: the demo room)"
+    )
     p.add_argument("--methods", default=DEMO_METHODS, help="comma-separated registered methods")
     add_plugin_argument(p)
 
 
 def run(args: argparse.Namespace) -> int:
     from openreloc_bench.harness import evaluation, leaderboard, runner
+    from openreloc_bench.harness.suites import suite_file
     from openreloc_bench.methods import uses_masks
 
-    if not args.suite.is_file():
-        raise ConfigError(f"suite file {args.suite} not found (run from a checkout, or pass --suite)")
+    suite = suite_file(args.suite)
     names = comma_list(args.methods, "--methods")
     data, board = args.out / "data", args.out / "leaderboard"
     workers = len(os.sched_getaffinity(0))
@@ -61,14 +62,14 @@ def run(args: argparse.Namespace) -> int:
     results = []
     for track, methods, splits in steps:
         out = args.out / "results" / track
-        _say_command(["eval", "--suite", str(args.suite), "--methods", ",".join(methods), "--track", track,
+        _say_command(["eval", "--suite", str(suite), "--methods", ",".join(methods), "--track", track,
                       "--splits", ",".join(splits), "--data", str(data), "--out", str(out),
                       "--workers", str(workers), "--resume", *plugin_args])  # fmt: skip
         cfg = runner.EvalConfig(
             data=data, out=out, scenes=[], runs=runner.variant_runs(methods, {}, False), splits=splits,
             track=track, workers=workers, resume=True, plugins=args.plugin,
         )  # fmt: skip
-        if evaluation.main(cfg, args.suite).errors:
+        if evaluation.main(cfg, suite).errors:
             return 1
         results.append(out)
     _say_command(["leaderboard", *map(str, results), "--data", str(data), "--out", str(board)])

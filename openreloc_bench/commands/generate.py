@@ -17,7 +17,7 @@ ORDER = 10
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("suite", type=Path, help="suite YAML, e.g. scenes/smoke.yaml")
+    parser.add_argument("suite", help="suite YAML (e.g. scenes/smoke.yaml) or a bundled suite's name (smoke)")
     parser.add_argument("--out", type=Path, required=True, help="output directory (scenes go to OUT/<name>/)")
     parser.add_argument(
         "--resume",
@@ -33,12 +33,14 @@ def run(args: argparse.Namespace) -> int:
     from generators.spec import load_suite
     from openreloc_bench.data import paths
     from openreloc_bench.errors import ConfigError
+    from openreloc_bench.harness.suites import suite_file
 
     if args.workers < 1:
         raise ConfigError(f"--workers must be >= 1, got {args.workers}")
-    suite = load_suite(args.suite)
+    suite_path = suite_file(args.suite)
+    suite = load_suite(suite_path)
     for spec in suite.scene_specs():  # a scene directory is replaced when regenerated: never over the suite file
-        paths.check_output(args.out / spec.name, [args.suite], "scene directory")
+        paths.check_output(args.out / spec.name, [suite_path], "scene directory")
     only = [s.strip() for s in args.scenes.split(",") if s.strip()] if args.scenes is not None else None
     for path in generate_suite(suite, args.out, resume=args.resume, workers=args.workers, only=only):
         print(path)

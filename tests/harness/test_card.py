@@ -226,7 +226,7 @@ def test_refuses_an_incomplete_scene(suite, tmp_path):
 
 def test_refuses_bad_paths(suite, tmp_path):
     out = str(tmp_path / "out")
-    assert "file not found" in refusal(
+    assert "nope.yaml' not found" in refusal(
         [str(tmp_path / "nope.yaml"), "--data", str(suite[1]), "--out", out], ConfigError
     )
     assert "data directory not found" in refusal([str(suite[0]), "--data", str(tmp_path / "nodata"), "--out", out])

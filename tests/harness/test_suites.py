@@ -40,15 +40,11 @@ def test_a_suite_is_a_yaml_or_a_bundled_name(tmp_path: Path, capsys) -> None:
     assert suite_file("smoke") == SUITES_DIR / "smoke.yaml" and suite_file(SUITES_DIR / "demo.yaml").name == "demo.yaml"
     with pytest.raises(ConfigError, match=r"suite 'nope' not found \(a suite YAML, or one of: .*demo.*smoke"):
         suite_file("nope")
-    argv = [
-        "eval",
-        "--suite",
-        "nope",
-        "--methods",
-        "nearest-frame",
-        "--data",
-        str(tmp_path / "d"),
-        "--out",
-        str(tmp_path / "r"),
-    ]
-    assert main(argv) == 2 and "suite 'nope' not found" in capsys.readouterr().err
+    d, r = str(tmp_path / "d"), str(tmp_path / "r")
+    for argv in (
+        ["eval", "--suite", "nope", "--methods", "nearest-frame", "--data", d, "--out", r],
+        ["generate", "nope", "--out", d],
+        ["card", "nope", "--data", d, "--out", r],
+        ["demo", "--suite", "nope", "--out", r],
+    ):
+        assert main(argv) == 2 and "suite 'nope' not found" in capsys.readouterr().err, argv[0]

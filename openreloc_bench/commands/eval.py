@@ -12,7 +12,7 @@ a cluster).
 
 Example (hist_nn.py registering a method, as in the README's "Adding a method"):
   openreloc-bench eval --suite scenes/smoke.yaml --methods nearest-frame --data data --out results
-  openreloc-bench eval --suite scenes/smoke.yaml --methods hist-nn,nearest-frame --plugin ./hist_nn.py \
+  openreloc-bench eval --suite demo --methods hist-nn,nearest-frame --plugin ./hist_nn.py \
       --data data --out results
 """
 

@@ -19,6 +19,7 @@ Map points are subsampled to --max-points. Nothing is written inside the inputs.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -80,8 +81,7 @@ def map_points(name: str, map_dir: Path, scene: Scene | None) -> MapPoints:
     draw = getattr(method, "map_points", None)
     if draw is not None:
         mp = draw(map_dir)
-        mp.summary = f"{name}: {mp.summary}"
-        return mp
+        return dataclasses.replace(mp, summary=f"{name}: {mp.summary}")
     if scene is None:
         raise ConfigError(
             f"method '{name}' keeps no 3D points it can draw (no map_points): give --scene to draw the "

@@ -41,9 +41,14 @@ def pool_worker(parent_pid: int, threads: int | None = None) -> None:
 _thread_limit: int | None = None
 
 
+def available_cores() -> int:
+    """The cores this process may run on (its CPU affinity where the system has one, as on Linux)."""
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+
+
 def core_share(workers: int) -> int:
     """Compute threads for each of ``workers`` processes sharing this machine's cores (at least 1)."""
-    return max(1, len(os.sched_getaffinity(0)) // workers)
+    return max(1, available_cores() // workers)
 
 
 def limit_threads(threads: int | None) -> None:

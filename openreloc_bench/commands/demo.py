@@ -19,11 +19,11 @@ your own method beside the others with ``--methods openreloc,sift-pnp,hist-nn --
 from __future__ import annotations
 
 import argparse
-import os
 import shlex
 from pathlib import Path
 
 from openreloc_bench.commands.options import add_plugin_argument, comma_list
+from openreloc_bench.processes import available_cores
 from openreloc_bench.tracks import ORACLE_MASK, PREDICTED
 
 NAME = "demo"
@@ -53,7 +53,7 @@ def run(args: argparse.Namespace) -> int:
     suite = suite_file(args.suite)
     names = comma_list(args.methods, "--methods")
     data, board = args.out / "data", args.out / "leaderboard"
-    workers = len(os.sched_getaffinity(0))
+    workers = available_cores()
     plugin_args = [x for spec in args.plugin for x in ("--plugin", spec)]
     steps = [(PREDICTED, names, list(DEMO_SPLITS))]
     masked = [n for n in names if uses_masks(n)]

@@ -18,7 +18,7 @@ from openreloc_bench.harness import runner
 from openreloc_bench.harness.executors import InlineExecutor, LocalExecutor, make_executor
 from openreloc_bench.harness.runner import EvalConfig, MethodRun
 from openreloc_bench.methods import uses_masks
-from openreloc_bench.processes import core_share
+from openreloc_bench.processes import available_cores, core_share
 
 
 def _square(x: int) -> int:
@@ -48,13 +48,13 @@ def _torch_threads(_: None) -> dict[str, int]:
 
 
 def test_pool_workers_and_their_children_share_the_cores() -> None:
-    workers = len(os.sched_getaffinity(0)) + 1  # more workers than cores: one thread each
+    workers = available_cores() + 1  # more workers than cores: one thread each
     (_, (torch_n, cv_n, omp, child_n)), *_ = LocalExecutor(workers).map(_threads, [0])
     assert (torch_n, cv_n, omp, child_n) == (1, 1, "1", 1)
 
 
 def test_core_share_is_at_least_one_thread() -> None:
-    cores = len(os.sched_getaffinity(0))
+    cores = available_cores()
     assert (core_share(1), core_share(cores), core_share(10 * cores)) == (cores, 1, 1)
 
 

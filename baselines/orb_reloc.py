@@ -46,7 +46,7 @@ from openreloc_bench import config as cfglib
 from openreloc_bench import geometry
 from openreloc_bench.bars import tqdm
 from openreloc_bench.data.types import SceneSequence
-from openreloc_bench.methods import Failure, MapPoints, PoseEstimate, QueryFrame, drawn_points
+from openreloc_bench.methods import DRAWN_POINTS, Failure, MapPoints, PoseEstimate, QueryFrame, drawn_points
 from openreloc_bench.vision.local_features import Keypoints
 
 MAP_FORMAT = "orb-reloc-map"
@@ -225,9 +225,9 @@ class OrbReloc:
                     diag.update(
                         keyframe=int(kf),
                         inliers=len(good),
-                        drawn_points=drawn_points(feats.xy[good], np.ones(len(good), bool)),
                         timing_s={"retrieve": t1 - t0, "pnp": time.perf_counter() - t1},
                     )
+                    diag[DRAWN_POINTS] = drawn_points(feats.xy[good], np.ones(len(good), bool))
                     return PoseEstimate(geometry.invert(T_cw), diag, confidence=len(good))
         diag["inliers"] = best_good
         if not diag["bow_candidates"]:

@@ -128,11 +128,11 @@ class SiftPnP:
         pose = estimate_absolute_pose(feats.xy[qi], fmap.points[rows], query.K, w, h, c.pose)
         diag["timing_s"] = {"extract_retrieve": t1 - t0, "match": t2 - t1, "pose": time.perf_counter() - t2}
         # a query keypoint may match the same point in several retrieved frames: count keypoints
-        n_inliers = 0 if pose is None else len(np.unique(qi[pose.inliers]))
+        kept = np.zeros(0, int) if pose is None else np.unique(qi[pose.inliers])
+        n_inliers = len(kept)
         diag["inliers"] = n_inliers
-        kept = np.zeros(len(feats), bool) if pose is None else np.isin(np.arange(len(feats)), qi[pose.inliers])
         matched = np.unique(qi)
-        diag[DRAWN_POINTS] = drawn_points(feats.xy[matched], kept[matched])
+        diag[DRAWN_POINTS] = drawn_points(feats.xy[matched], np.isin(matched, kept))
         if pose is None or n_inliers < c.min_inliers:
             return Failure(f"{n_inliers} inliers of {len(qi)} matches, fewer than min_inliers={c.min_inliers}", diag)
         return PoseEstimate(pose.T_wc, diag, confidence=n_inliers)

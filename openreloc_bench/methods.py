@@ -112,7 +112,7 @@ class Relocalizer(Protocol):
 
 @dataclass
 class MapPoints:
-    """What a loaded map holds in 3D, for drawing: its points, each in a group (a landmark, an object, the
+    """What a map holds in 3D, for drawing: its points, each in a group (a landmark, an object, the
     mapping frame it was seen from), and the cameras it keeps."""
 
     points: np.ndarray

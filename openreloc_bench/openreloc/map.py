@@ -118,6 +118,7 @@ class ObjectMap:
         """The landmarks' points (one group each; the filtered ones muted) and the reference frames."""
         ids = sorted(self.landmarks)
         lms = [self.landmarks[i] for i in ids]
+        counts = [len(lm.points) for lm in lms]
         labels = {
             lid: f"landmark {lid}: {lm.category or 'no category'}<br>"
             f"{'valid' if lm.valid else 'filtered (invalid object)'}, {len(lm.points)} points, "
@@ -129,7 +130,7 @@ class ObjectMap:
             points=np.concatenate(
                 [np.asarray(lm.points, np.float64).reshape(-1, 3) for lm in lms] or [np.zeros((0, 3))]
             ),
-            group=np.repeat(np.array(ids, dtype=np.int64), [len(lm.points) for lm in lms]),
+            group=np.repeat(np.array(ids, dtype=np.int64), counts),
             labels=labels,
             K=self.K,
             size=(self.width, self.height),
@@ -137,7 +138,7 @@ class ObjectMap:
             muted=frozenset(i for i, lm in zip(ids, lms) if not lm.valid),
             names=("landmarks", "filtered landmarks (walls, floors...)", "reference frames"),
             summary=f"{len(ids)} landmarks ({len(self.valid_ids())} valid), {len(rfs)} reference frames, "
-            f"{sum(len(lm.points) for lm in lms)} points",
+            f"{sum(counts)} points",
         )
 
     # ---------------------------------------------------------------------------------------- save

@@ -192,6 +192,7 @@ class FeatureMap:
             K=self.K,
             size=(self.width, self.height),
             cameras=self.poses,
+            camera_labels=tuple(f"mapping frame {f}: {n[f]} points" for f in range(self.n_frames)),
             names=("points by mapping frame", "", "mapping frames"),
             summary=f"{len(self.points)} points from {self.n_frames} mapping frames",
         )

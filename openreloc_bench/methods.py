@@ -127,6 +127,8 @@ class MapPoints:
     """(width, height) of the map's images."""
     cameras: np.ndarray = field(default_factory=lambda: np.zeros((0, 4, 4)))
     """(F, 4, 4) T_wc of the frames the map keeps (keyframes, reference frames)."""
+    camera_labels: tuple[str, ...] = ()
+    """Hover text of each camera (none: the cameras' legend name and index)."""
     muted: frozenset[int] = frozenset()
     """Groups drawn grey, apart (e.g. landmarks a filter set aside)."""
     names: tuple[str, str, str] = ("points", "set aside", "cameras")

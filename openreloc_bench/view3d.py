@@ -201,7 +201,7 @@ def map_figure(
     extent = [extent_pts]
     if len(mp.cameras):
         T, name = np.asarray(mp.cameras).reshape(-1, 4, 4), mp.names[2]
-        hover = [f"{name}: {k}" for k in range(len(T))]
+        hover = list(mp.camera_labels) or [f"{name} {k}" for k in range(len(T))]
         traces += _cameras(T, mp.K, mp.size, 0.15, f"{name} ({len(T)})", "rgb(31,119,180)", "rf", hover, 1.5)
         extent.append(T[:, :3, 3])
     if mapping is not None and len(mapping):

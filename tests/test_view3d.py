@@ -72,6 +72,8 @@ def test_map_figure_draws_landmarks_cameras_and_the_mapping_path() -> None:
     (filtered,) = names["filtered landmarks (walls, floors...) (1)"]
     assert filtered.text[0].startswith("landmark 5: wall<br>filtered") and filtered.marker.color == view3d.MUTED_COLOR
     assert len(set(valid.marker.color)) == 4  # one colour per valid landmark
+    centres = [t for t in names["reference frames (2)"] if t.mode == "markers"][0]
+    assert centres.text[0].startswith("reference frame ") and centres.text[0].endswith("landmarks in view")
     assert len(names["mapping path (20 frames)"][0].x) == 20
     mapping_frustums = [t for t in fig.data if t.legendgroup == "mapping" and t.mode == "lines"][0]
     assert sum(v is None for v in mapping_frustums.x) == view3d.MAX_MAPPING_FRUSTUMS

@@ -135,6 +135,7 @@ class ObjectMap:
             K=self.K,
             size=(self.width, self.height),
             cameras=np.stack([rf.T_wc for rf in rfs]) if rfs else np.zeros((0, 4, 4)),
+            camera_labels=tuple(f"reference frame {rf.index}: {len(rf.boxes)} landmarks in view" for rf in rfs),
             muted=frozenset(i for i, lm in zip(ids, lms) if not lm.valid),
             names=("landmarks", "filtered landmarks (walls, floors...)", "reference frames"),
             summary=f"{len(ids)} landmarks ({len(self.valid_ids())} valid), {len(rfs)} reference frames, "

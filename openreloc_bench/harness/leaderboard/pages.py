@@ -62,7 +62,8 @@ WHY_CAPTIONS = {
     "error. A curve that rises late is coarse; one that levels off low fails often.",
     "recall_vs_lighting.png": "What the light takes: recall as the query splits darken.",
 }
-"""The plots that explain a verdict, in the order a board shows them first ("Why"), with what to read off each."""
+"""The plots that explain a verdict, shown first ("Why", in the board's order of its plots), with what to
+read off each."""
 
 
 def _why_markdown(why: Sequence[str]) -> list[str]:
@@ -222,7 +223,6 @@ def to_html(
     )
     if why_html:
         why_html = f'<h2>Why</h2>\n<div class="whys">{why_html}</div>\n'
-
     if difficulty_plots:
         imgs += f'<h2 class="clear">Recall vs difficulty</h2>\n<p>{html.escape(DIFFICULTY_TEXT)}</p>\n'
         imgs += "".join(_figure(p, wide=True) for p in difficulty_plots)

@@ -1,3 +1,4 @@
+import argparse
 import subprocess
 import sys
 
@@ -58,3 +59,12 @@ def test_a_closed_output_pipe_ends_non_zero_in_one_line() -> None:
     proc.stdout.close()  # the reader is gone before the first line
     err = proc.stderr.read()
     assert proc.wait() == 141 and err == "openreloc-bench methods: stopped: its output was closed (by `| head`?)\n", err
+
+
+def test_positional_arguments_are_named_in_capitals():
+    """Usage lines name what a user types in one case (``generate SUITE``, ``view MAPDIR``), choices aside."""
+    sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    for name, parser in sub.choices.items():
+        for action in parser._actions:
+            if not action.option_strings and action.choices is None:
+                assert action.metavar and action.metavar.isupper(), f"{name}: positional '{action.dest}'"

@@ -16,7 +16,7 @@ ORDER = 12
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("pack", type=Path, help="asset pack directory (manifest.yaml and its meshes)")
+    parser.add_argument("pack", type=Path, metavar="PACK", help="asset pack directory (manifest.yaml and its meshes)")
     parser.add_argument(
         "--gallery",
         type=Path,

@@ -29,7 +29,9 @@ ORDER = 45
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("plan", type=Path, help="plan YAML (leaderboard/plan.yaml: the committed boards' plan)")
+    p.add_argument(
+        "plan", type=Path, metavar="PLAN", help="plan YAML (leaderboard/plan.yaml: the committed boards' plan)"
+    )
     p.add_argument("--data", type=Path, required=True, help="dataset folder (missing suites are generated into it)")
     p.add_argument("--work", type=Path, required=True, help="results of every step, and the campaign's record")
     p.add_argument("--out", type=Path, default=Path("leaderboard"), help="boards folder")

@@ -21,7 +21,9 @@ ORDER = 13
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("suite", help="suite YAML (e.g. scenes/smoke.yaml) or a bundled suite's name (smoke)")
+    parser.add_argument(
+        "suite", metavar="SUITE", help="suite YAML (e.g. scenes/smoke.yaml) or a bundled suite's name (smoke)"
+    )
     parser.add_argument("--data", type=Path, required=True, help="dataset directory holding the suite's scenes")
     parser.add_argument(
         "--out", type=Path, required=True, help="output directory: OUT/<suite>.md, pictures in OUT/<suite>/"

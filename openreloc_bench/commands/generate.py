@@ -17,7 +17,9 @@ ORDER = 10
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("suite", help="suite YAML (e.g. scenes/smoke.yaml) or a bundled suite's name (smoke)")
+    parser.add_argument(
+        "suite", metavar="SUITE", help="suite YAML (e.g. scenes/smoke.yaml) or a bundled suite's name (smoke)"
+    )
     parser.add_argument("--out", type=Path, required=True, help="output directory (scenes go to OUT/<name>/)")
     parser.add_argument(
         "--resume",

@@ -19,7 +19,7 @@ MAX_FRAMES = 32
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("scene", type=Path, help="scene directory, e.g. data/smoke-room")
+    parser.add_argument("scene", type=Path, metavar="SCENE", help="scene directory, e.g. data/smoke-room")
     parser.add_argument(
         "--out",
         type=Path,

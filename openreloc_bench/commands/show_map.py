@@ -24,7 +24,7 @@ ORDER = 45
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("map_dir", type=Path, help="map directory written by `openreloc-bench map`")
+    parser.add_argument("map_dir", type=Path, metavar="MAPDIR", help="map directory written by `openreloc-bench map`")
     parser.add_argument(
         "--out",
         type=Path,

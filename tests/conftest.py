@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from openreloc_bench import geometry
+from openreloc_bench.data.paths import CACHE_ENV
 from openreloc_bench.data.scene import ObjectInfo, SceneWriter
 
 
@@ -36,6 +37,15 @@ def write_tiny_scene(
             inst = np.zeros((h, w), np.int32)
             inst[h // 4 : 3 * h // 4, w // 4 : 3 * w // 4] = 1
             writer.write_frame(split, i, color, depth, inst, T)
+    return root
+
+
+@pytest.fixture(autouse=True)
+def user_cache(tmp_path_factory: pytest.TempPathFactory, monkeypatch: pytest.MonkeyPatch) -> Path:
+    """Each test's user cache (:func:`~openreloc_bench.data.paths.cache_root`), also for the commands it
+    starts: a fresh folder, never the tester's own cache."""
+    root = tmp_path_factory.mktemp("user-cache")
+    monkeypatch.setenv(CACHE_ENV, str(root))
     return root
 
 

@@ -18,10 +18,22 @@ from pathlib import Path
 from openreloc_bench.data import io
 from openreloc_bench.errors import ConfigError
 
+CACHE_ENV = "OPENRELOC_BENCH_CACHE"
 LOCK_NAME = ".openreloc-bench.lock"
 OWNED_FOLDERS = {"scene.json": "scene", "manifest.json": "map"}
 """Files that mark a folder as a scene or a map: no output is written inside one, whichever scene or
 map a command reads (a preview of one scene once overwrote another scene's frame)."""
+
+
+def cache_root(cache_dir: str | Path | None = None) -> Path:
+    """The user cache (environment scenes and maps, the describers' tables and answers): ``cache_dir``,
+    else ``$OPENRELOC_BENCH_CACHE``, else the XDG user cache."""
+    if cache_dir:
+        return Path(cache_dir).expanduser()
+    if os.environ.get(CACHE_ENV):
+        return Path(os.environ[CACHE_ENV]).expanduser()
+    xdg = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
+    return Path(xdg) / "openreloc-bench"
 
 
 def plain_name(name: str, what: str) -> str:

@@ -43,9 +43,10 @@ from gymnasium.envs.registration import EnvSpec
 from gymnasium.utils import EzPickle
 
 from openreloc_bench import config, geometry
+from openreloc_bench.data.paths import cache_root
 from openreloc_bench.data.scene import Scene
 from openreloc_bench.envs.relocalizer import Estimate, InLoopRelocalizer
-from openreloc_bench.envs.scenes import cache_root, resolve_scene
+from openreloc_bench.envs.scenes import resolve_scene
 from openreloc_bench.envs.world import AgentPose, World, scene_spec
 from openreloc_bench.errors import ConfigError, OpenRelocError
 from openreloc_bench.tracks import DEFAULT_TRACK, ORACLE_MASK, Track

@@ -7,6 +7,7 @@ Cache layout (``cache_dir``: the env option, else ``$OPENRELOC_BENCH_CACHE``, el
     scenes/<suite>/<scene>/                        generated scenes (the generator's layout)
     maps/<method>/<map key>/<scene>-<spec hash>/   relocalizer maps (harness/cache.py's record)
     goals/<scene>-<spec hash>/<encoder hash>.npz   text embeddings of the scene's object descriptions
+    describer/                                     the describers' phrase tables and answers
     locks/                                         one lock file per thing being built
 
 Several processes (the workers of a vector environment) may ask for the same scene or map at once:
@@ -27,22 +28,12 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
+from openreloc_bench.data.paths import cache_root
 from openreloc_bench.data.scene import Scene
 from openreloc_bench.errors import ConfigError, DataError
 from openreloc_bench.harness.suites import scene_state, suite_file
 
-CACHE_ENV = "OPENRELOC_BENCH_CACHE"
 log = logging.getLogger(__name__)
-
-
-def cache_root(cache_dir: str | Path | None = None) -> Path:
-    """The cache directory: ``cache_dir``, else ``$OPENRELOC_BENCH_CACHE``, else the XDG user cache."""
-    if cache_dir:
-        return Path(cache_dir).expanduser()
-    if os.environ.get(CACHE_ENV):
-        return Path(os.environ[CACHE_ENV]).expanduser()
-    xdg = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
-    return Path(xdg) / "openreloc-bench"
 
 
 @contextmanager

@@ -13,18 +13,21 @@ from __future__ import annotations
 
 import base64
 import hashlib
+import io as _io
 import json
 import logging
 import os
 import time
 import urllib.error
 import urllib.request
+from functools import lru_cache
+from importlib import metadata
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from openreloc_bench.data import io
+from openreloc_bench.data import io, paths
 from openreloc_bench.errors import ConfigError
 from openreloc_bench.vision import vocabulary as voc
 from openreloc_bench.vision.base import Describer, ImageTextEncoder, create_encoder, register_describer
@@ -66,8 +69,30 @@ class OfflineDescriber(Describer):
 
     def _table(self, key: str, phrases: list[str]) -> np.ndarray:
         if key not in self._tables:
-            self._tables[key] = self.encoder.encode_texts(phrases)
+            self._tables[key] = self._stored_table(phrases)
         return self._tables[key]
+
+    def _stored_table(self, phrases: list[str]) -> np.ndarray:
+        """The encoder's embeddings of ``phrases``, kept in the user cache (``describer/``) under the
+        encoder's config, the phrases and the library versions: a process that finds them there neither
+        loads the text model nor runs it (seconds of every map load). The stored table is the one the
+        encoder computed for this very list, so it is bit-identical to embedding it again."""
+        key = json.dumps([self.encoder.config(), _library_versions(), phrases], sort_keys=True, default=str)
+        path = paths.cache_root() / "describer" / f"table-{hashlib.sha256(key.encode()).hexdigest()[:24]}.npy"
+        try:
+            table = np.load(path, allow_pickle=False)
+            if table.shape == (len(phrases), self.encoder.dim) and table.dtype == np.float32:
+                return table
+        except (OSError, ValueError):  # not stored yet, or a damaged file: embed again
+            pass
+        table = np.asarray(self.encoder.encode_texts(phrases), np.float32)
+        buf = _io.BytesIO()
+        np.save(buf, table, allow_pickle=False)
+        try:
+            io.atomic_write_bytes(path, buf.getvalue())
+        except OSError as e:  # a read-only cache costs time, not the answer
+            log.warning("cannot store the describer's phrase table in %s (%s)", path.parent, e)
+        return table
 
     def _nouns(self) -> np.ndarray:
         return self._table("nouns", [voc.with_article(voc.ZERO_SHOT_TEMPLATE.format(noun=n)) for n in self.nouns])
@@ -108,6 +133,20 @@ class OfflineDescriber(Describer):
             words = f"{colour} {voc.MATERIALS[best]}" if ms[best] > cs.max() + self.material_margin else colour
             out.append(voc.with_article(f"a {words} {noun}"))
         return out
+
+
+@lru_cache(maxsize=1)
+def _library_versions() -> dict[str, str]:
+    """Versions of the libraries a text embedding depends on (a new one may change its last bits)."""
+    from openreloc_bench.vision.offline import MINILM_PACKAGE  # torch is loaded by then: an encoder ran
+
+    found = {}
+    for dist in ("torch", "transformers", "sentence-transformers", "open_clip_torch", MINILM_PACKAGE):
+        try:
+            found[dist] = metadata.version(dist)
+        except metadata.PackageNotFoundError:
+            found[dist] = ""
+    return found
 
 
 PROMPT = (
@@ -156,11 +195,7 @@ class OpenAIDescriber(Describer):
             backoff_s,
             max_tokens,
         )
-        self.cache_dir = (
-            Path(cache_dir)
-            if cache_dir
-            else Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "openreloc_bench" / "describer"
-        )
+        self.cache_dir = Path(cache_dir) if cache_dir else paths.cache_root() / "describer"
         self._encoder = encoder
         self._fallback = fallback
         self.calls = 0

@@ -9,18 +9,9 @@ from pathlib import Path
 import pytest
 import yaml
 
-from openreloc_bench.envs.scenes import CACHE_ENV, cache_root, resolve_scene
+from openreloc_bench.envs.scenes import resolve_scene
 from openreloc_bench.errors import ConfigError
 from tests.envs.conftest import TINY
-
-
-def test_cache_root_prefers_the_option_then_the_variable(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setenv(CACHE_ENV, str(tmp_path / "env"))
-    assert cache_root(tmp_path / "opt") == tmp_path / "opt"
-    assert cache_root() == tmp_path / "env"
-    monkeypatch.delenv(CACHE_ENV)
-    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
-    assert cache_root() == tmp_path / "xdg" / "openreloc-bench"
 
 
 def test_a_scene_directory_is_used_as_it_is(tiny_room: Path, tmp_path: Path) -> None:

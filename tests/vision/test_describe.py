@@ -13,6 +13,7 @@ import cv2
 import numpy as np
 import pytest
 
+from openreloc_bench.data.paths import cache_root
 from openreloc_bench.vision import create_describer
 from openreloc_bench.vision import vocabulary as voc
 from openreloc_bench.vision.preprocess import InputError
@@ -44,7 +45,10 @@ class _Spy:
     """Wraps an encoder and records the crops it is given."""
 
     def __init__(self, enc) -> None:
-        self.enc, self.crops = enc, []
+        self.enc, self.crops, self.dim = enc, [], enc.dim
+
+    def config(self):
+        return self.enc.config()
 
     def encode_images(self, crops):
         self.crops.append(list(crops))
@@ -88,6 +92,25 @@ def test_prepared_offline_describer_encodes_no_text_per_query(clip_encoder) -> N
     d.describe_many(img, [mask])
     d.describe_many(other, [mask, ~mask])
     assert counter.texts == prepared
+
+
+def test_offline_describer_stores_its_tables_in_the_user_cache(clip_encoder) -> None:
+    """A second process (here: a second describer) reads the phrase tables bit for bit, encoding nothing;
+    a damaged table file is embedded again."""
+    first = _TextCounter(clip_encoder)
+    d = create_describer("offline", encoder=first)
+    d.prepare()
+    stored = sorted((cache_root() / "describer").glob("table-*.npy"))
+    assert first.texts > 0 and len(stored) == 2 + len(voc.COLOURS)
+    second = _TextCounter(clip_encoder)
+    again = create_describer("offline", encoder=second)
+    again.prepare()
+    assert second.texts == 0
+    assert all(again._tables[k].tobytes() == d._tables[k].tobytes() for k in d._tables)
+    stored[0].write_bytes(b"not an array")
+    third = _TextCounter(clip_encoder)
+    create_describer("offline", encoder=third).prepare()
+    assert 0 < third.texts < first.texts
 
 
 def test_offline_describer_sees_object_and_context(clip_encoder) -> None:

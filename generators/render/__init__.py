@@ -8,6 +8,8 @@ Importing this package sets ``MUJOCO_GL`` before MuJoCo loads; no GL context is 
 render.
 """
 
+from pathlib import Path
+
 from generators.layout import Layout
 from generators.render.base import Renderer
 from generators.render.mujoco_backend import MujocoRenderer
@@ -16,10 +18,13 @@ from openreloc_bench.errors import ConfigError
 __all__ = ["Renderer", "create_renderer"]
 
 
-def create_renderer(layout: Layout, backend: str = "mujoco", max_width: int = 640, max_height: int = 480) -> Renderer:
-    """Renderer for ``layout``; ``backend`` is 'mujoco' (default) or 'pyrender' (the optional extra)."""
+def create_renderer(
+    layout: Layout, backend: str = "mujoco", max_width: int = 640, max_height: int = 480, compiled: Path | None = None
+) -> Renderer:
+    """Renderer for ``layout``; ``backend`` is 'mujoco' (default) or 'pyrender' (the optional extra).
+    ``compiled``: where MuJoCo keeps the compiled scene for the next renderer (pyrender compiles none)."""
     if backend == "mujoco":
-        return MujocoRenderer(layout, max_width, max_height)
+        return MujocoRenderer(layout, max_width, max_height, compiled)
     if backend == "pyrender":
         from generators.render.pyrender_backend import PyrenderRenderer  # optional extra: imported on demand
 

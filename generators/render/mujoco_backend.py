@@ -14,11 +14,13 @@ pool can fork/spawn workers safely.
 
 from __future__ import annotations
 
+import io as _io
 import logging
 import os
 import struct
 import sys
 from collections.abc import Callable, Sequence
+from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
 import numpy as np
@@ -158,15 +160,43 @@ def build_mjcf(layout: Layout, max_width: int, max_height: int) -> tuple[str, di
     return xml, assets, geom_instance
 
 
+def _compiled_model(
+    layout: Layout, max_width: int, max_height: int, path: Path | None
+) -> tuple[mujoco.MjModel, list[int]]:
+    """The layout's MuJoCo model and the instance of each geom: from ``path`` when it holds them (a
+    model's binary dump reads back exactly), else compiled from :func:`build_mjcf` (drawing every texture,
+    seconds on a large scene) and stored there."""
+    instances = path.with_suffix(".npy") if path is not None else None
+    if path is not None and instances is not None and path.is_file() and instances.is_file():
+        try:
+            model = mujoco.MjModel.from_binary_path(str(path))
+            geom_instance = np.load(instances, allow_pickle=False).tolist()
+            if len(geom_instance) == model.ngeom:
+                return model, geom_instance
+        except (OSError, ValueError):  # a damaged file: compile again
+            pass
+    xml, assets, geom_instance = build_mjcf(layout, max_width, max_height)
+    try:
+        model = mujoco.MjModel.from_xml_string(xml, assets)
+    except ValueError as e:
+        raise RuntimeError(f"MuJoCo could not compile the scene: {e}") from None
+    if path is not None and instances is not None:
+        buf = np.zeros(mujoco.mj_sizeModel(model), np.uint8)
+        mujoco.mj_saveModel(model, None, buf)
+        stored = _io.BytesIO()
+        np.save(stored, np.asarray(geom_instance, np.int64), allow_pickle=False)
+        io.atomic_write_bytes(instances, stored.getvalue())
+        io.atomic_write_bytes(path, buf.tobytes())
+    return model, geom_instance
+
+
 class MujocoRenderer(Renderer):
     """MuJoCo classic OpenGL renderer over EGL (OSMesa fallback)."""
 
-    def __init__(self, layout: Layout, max_width: int = 640, max_height: int = 480):
-        xml, assets, geom_instance = build_mjcf(layout, max_width, max_height)
-        try:
-            self.model = mujoco.MjModel.from_xml_string(xml, assets)
-        except ValueError as e:
-            raise RuntimeError(f"MuJoCo could not compile the scene: {e}") from None
+    def __init__(self, layout: Layout, max_width: int = 640, max_height: int = 480, compiled: Path | None = None):
+        """``compiled``: where the compiled model is kept (``.mjb``, its geoms' instances beside it) for the
+        next renderer of the same layout and size: read from there when it is, else built and stored."""
+        self.model, geom_instance = _compiled_model(layout, max_width, max_height, compiled)
         self.data = mujoco.MjData(self.model)
         mujoco.mj_forward(self.model, self.data)
         self.layout = layout

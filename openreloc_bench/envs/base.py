@@ -250,7 +250,7 @@ class IndoorEnv(gym.Env, EzPickle):
     def world(self) -> World:
         """The scene's layout, free space and renderer (built on first use, in this process)."""
         if self._world is None:
-            self._world = World(self.scene, self.config.width, self.config.height)
+            self._world = World(self.scene, self.config.width, self.config.height, self._cache / "renders")
         return self._world
 
     def reset(

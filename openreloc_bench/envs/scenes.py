@@ -7,6 +7,7 @@ Cache layout (``cache_dir``: the env option, else ``$OPENRELOC_BENCH_CACHE``, el
     scenes/<suite>/<scene>/                        generated scenes (the generator's layout)
     maps/<method>/<map key>/<scene>-<spec hash>/   relocalizer maps (harness/cache.py's record)
     goals/<scene>-<spec hash>/<encoder hash>.npz   text embeddings of the scene's object descriptions
+    renders/<scene>-<spec hash>-<W>x<H>.mjb        the compiled MuJoCo scene (its textures drawn)
     describer/                                     the describers' phrase tables and answers
     locks/                                         one lock file per thing being built
 

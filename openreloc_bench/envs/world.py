@@ -15,6 +15,7 @@ context must never exist before a ``fork``.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -75,7 +76,9 @@ def scene_spec(scene: Scene) -> SceneSpec:
 class World:
     """Layout, walkable free space per floor and a lazily created renderer of one generated scene."""
 
-    def __init__(self, scene: Scene, max_width: int, max_height: int):
+    def __init__(self, scene: Scene, max_width: int, max_height: int, compiled_dir: Path | None = None):
+        """``compiled_dir``: where the renderer keeps the scene's compiled model between processes (drawing
+        its textures takes seconds); None: compile it in each process."""
         from generators.layout import build_layout
 
         self.scene = scene
@@ -88,6 +91,11 @@ class World:
         if not any(len(c) for c in self._cells):
             raise DataError(scene.root, "no walkable free space in the scene")
         self._max_size = (max(max_width, self.spec.width), max(max_height, self.spec.height))
+        self._compiled = (
+            None
+            if compiled_dir is None
+            else compiled_dir / f"{scene.name}-{scene.spec_hash}-{self._max_size[0]}x{self._max_size[1]}.mjb"
+        )
         self._renderer: Renderer | None = None
         self._maps: dict[int, np.ndarray] = {}
 
@@ -134,7 +142,7 @@ class World:
     @property
     def renderer(self) -> Renderer:
         if self._renderer is None:
-            self._renderer = create_renderer(self.layout, "mujoco", *self._max_size)
+            self._renderer = create_renderer(self.layout, "mujoco", *self._max_size, compiled=self._compiled)
         return self._renderer
 
     def render(

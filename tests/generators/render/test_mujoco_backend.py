@@ -27,8 +27,7 @@ def _box(iid: int, lo, hi, colour: str, category: str, structural: bool) -> Inst
     )
 
 
-@pytest.fixture(scope="module")
-def box_room():
+def _box_room_layout() -> Layout:
     """A 4 x 5 m closed room with one 1 x 0.5 x 1 m box whose front face is at y = 3.5."""
     insts = [
         _box(1, (0, 0, -0.1), (4, 5, 0), "brown", "floor", True),
@@ -39,7 +38,7 @@ def box_room():
         _box(6, (0, 0, 2.7), (4, 5, 2.8), "white", "ceiling", True),
         _box(7, (1.5, 3.5, 0), (2.5, 4.0, 1.0), "red", "box", False),
     ]
-    layout = Layout(
+    return Layout(
         [Room("r", "living", 0, (0, 0, 4, 5), 0.0, 2.7)],
         [],
         [Light(np.array([2, 2.5, 2.3]), "r", 0)],
@@ -48,7 +47,11 @@ def box_room():
         [0.0],
         2.7,
     )
-    r = create_renderer(layout, "mujoco", W, H)
+
+
+@pytest.fixture(scope="module")
+def box_room():
+    r = create_renderer(_box_room_layout(), "mujoco", W, H)
     yield r
     r.close()
 
@@ -77,6 +80,31 @@ def test_exact_depth_on_known_geometry(box_room, pose: int) -> None:
     # every box pixel lies on one of the box faces (metric error of unprojection, not just inside the box)
     face_dist = np.min(np.abs(np.concatenate([box - lo, box - hi], axis=1)), axis=1)
     assert face_dist.max() < 1e-4
+
+
+def test_a_stored_compiled_scene_renders_the_same(box_room, tmp_path, monkeypatch) -> None:
+    """The second renderer of a layout reads the compiled model (no texture drawn) and draws the same
+    pixels; a damaged file is compiled again."""
+    stored = tmp_path / "room.mjb"
+    first = create_renderer(_box_room_layout(), "mujoco", W, H, compiled=stored)
+    first.close()
+    assert stored.is_file() and stored.with_suffix(".npy").is_file()
+
+    def no_compile(*args, **kwargs):
+        raise AssertionError("compiled the scene again")
+
+    with monkeypatch.context() as m:
+        m.setattr(mujoco_backend, "build_mjcf", no_compile)
+        again = create_renderer(_box_room_layout(), "mujoco", W, H, compiled=stored)
+    try:
+        for got, want in zip(again.render(POSES[1], K, W, H), box_room.render(POSES[1], K, W, H)):
+            assert np.array_equal(got, want)
+    finally:
+        again.close()
+    stored.write_bytes(b"damaged")
+    monkeypatch.chdir(tmp_path)  # MuJoCo logs the bad header to MUJOCO_LOG.TXT in the working folder
+    create_renderer(_box_room_layout(), "mujoco", W, H, compiled=stored).close()
+    assert stored.stat().st_size > 1000
 
 
 def test_colour_only_rendering_matches_the_full_render(box_room) -> None:

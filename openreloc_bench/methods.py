@@ -2,10 +2,10 @@
 
 Callers ask a method through :func:`localize_safely`, which sorts its answer into a pose or a failure.
 
-A method is a class satisfying :class:`Relocalizer`. It is found by name through the entry-point
-group ``openreloc_bench.methods`` (declared in a package's ``pyproject.toml``), so an outside package
-adds a method without touching this repository; :func:`register` exists for methods defined in
-scripts and tests.
+A method is a class satisfying :class:`Relocalizer`, found by name: this project's in
+:data:`BUILTIN_METHODS`, an outside package's through the entry-point group ``openreloc_bench.methods``
+(declared in its ``pyproject.toml``, so it adds a method without touching this repository), and methods
+defined in plugins, scripts and tests through :func:`register`.
 """
 
 from __future__ import annotations
@@ -15,7 +15,8 @@ import logging
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, is_dataclass
-from importlib.metadata import entry_points
+from functools import cache
+from importlib.metadata import EntryPoint, entry_points
 from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
 
@@ -193,15 +194,52 @@ def _real(value: Any) -> float:
         return float("nan")
 
 
+BUILTIN_METHODS = {
+    "openreloc": "openreloc_bench.openreloc.method:OpenReLoc",
+    "openreloc-paper": "openreloc_bench.openreloc.paper:OpenReLocPaper",
+    "openreloc-oracle-association": "openreloc_bench.openreloc.method:OpenReLocOracleAssociation",
+    "goreloc": "baselines.goreloc.method:GOReloc",
+    "sift-pnp": "baselines.sift_pnp:SiftPnP",
+    "orb-reloc": "baselines.orb_reloc:OrbReloc",
+    "retrieval": "baselines.image_retrieval:ImageRetrieval",
+    "posenet": "baselines.posenet:PoseNet",
+    "nearest-frame": "baselines.nearest_frame:NearestFrame",
+}
+"""This project's methods, name -> ``module:Class``, each imported when first used (hloc's plugins by
+name: the core names the methods without importing them). A new baseline is its module, its test and a
+line here (and one in ``leaderboard/plan.yaml`` to put it on the boards); no reinstall."""
+
 _REGISTRY: dict[str, Callable[..., Relocalizer]] = {}
 
 
+@cache
+def _named_methods() -> dict[str, EntryPoint]:
+    """The built-in methods, then the installed packages' entry points, by name (read once per process).
+    An entry point cannot take a built-in's name: one naming the built-in's own class (an install of this
+    project from when its methods were entry points) is dropped silently, any other with a one-line warning,
+    so that no result of another method is filed under a built-in's name."""
+    found = {name: EntryPoint(name, value, ENTRY_POINT_GROUP) for name, value in BUILTIN_METHODS.items()}
+    for ep in entry_points(group=ENTRY_POINT_GROUP):
+        if ep.name not in BUILTIN_METHODS:
+            found[ep.name] = ep
+        elif ep.value != BUILTIN_METHODS[ep.name]:
+            log.warning(
+                "entry point %s = %s ignored: '%s' is the built-in method %s; declare yours under another name",
+                ep.name,
+                ep.value,
+                ep.name,
+                BUILTIN_METHODS[ep.name],
+            )
+    return found
+
+
 def register(name: str, factory: Callable[..., Relocalizer]) -> None:
-    """Register a method factory under ``name`` (in-process; packages should use entry points). A name
-    an installed package's entry point holds is refused: its results would be filed under the other
-    method's name."""
-    for ep in entry_points(group=ENTRY_POINT_GROUP, name=name):
-        raise ConfigError(f"method name '{name}' is taken by {ep.value}: register yours under another name")
+    """Register a method factory under ``name`` (in-process; packages should use entry points). A name a
+    built-in method or an installed package's entry point holds is refused: its results would be filed
+    under the other method's name."""
+    taken = _named_methods().get(name)
+    if taken is not None:
+        raise ConfigError(f"method name '{name}' is taken by {taken.value}: register yours under another name")
     _REGISTRY[name] = factory
 
 
@@ -211,19 +249,15 @@ def registered() -> dict[str, Callable[..., Relocalizer]]:
 
 
 def available_methods() -> dict[str, Callable[..., Relocalizer]]:
-    """All method factories by name: entry points first, then in-process registrations."""
-    found: dict[str, Callable[..., Relocalizer]] = {}
-    for ep in entry_points(group=ENTRY_POINT_GROUP):
-        found[ep.name] = _lazy(ep)
-    found.update(_REGISTRY)
-    return found
+    """All method factories by name: the built-ins, the entry points, then in-process registrations."""
+    return {**{name: _lazy(ep) for name, ep in _named_methods().items()}, **_REGISTRY}
 
 
-def _lazy(ep: Any) -> Callable[..., Relocalizer]:
+def _lazy(ep: EntryPoint) -> Callable[..., Relocalizer]:
     def factory(**kwargs: Any) -> Relocalizer:
         return ep.load()(**kwargs)
 
-    factory.__doc__ = f"entry point {ep.value}"
+    factory.__doc__ = f"{'built-in' if ep.name in BUILTIN_METHODS else 'entry point'} {ep.value}"
     return factory
 
 
@@ -237,9 +271,8 @@ def _method_class(name: str) -> Any:
     """What ``name`` is registered as (in-process first, as :func:`available_methods`); None if nothing."""
     if name in _REGISTRY:
         return _REGISTRY[name]
-    for ep in entry_points(group=ENTRY_POINT_GROUP, name=name):
-        return ep.load()
-    return None
+    ep = _named_methods().get(name)
+    return None if ep is None else ep.load()
 
 
 def uses_masks(name: str) -> bool:

@@ -1,3 +1,6 @@
+from collections.abc import Callable, Iterator
+from importlib.metadata import EntryPoint
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -8,6 +11,8 @@ from openreloc_bench import methods
 from openreloc_bench.data.types import Frame
 from openreloc_bench.errors import ConfigError
 from openreloc_bench.methods import (
+    BUILTIN_METHODS,
+    ENTRY_POINT_GROUP,
     Failure,
     PoseEstimate,
     QueryFrame,
@@ -22,10 +27,52 @@ from openreloc_bench.methods import (
 from openreloc_bench.tracks import MASK_FREE, ORACLE_MASK, PREDICTED, TRACKS
 
 
-def test_nearest_frame_is_registered_through_entry_points():
-    assert "nearest-frame" in available_methods()
-    m = create_method("nearest-frame")
-    assert isinstance(m, Relocalizer) and m.name == "nearest-frame"
+@pytest.mark.parametrize("name", sorted(BUILTIN_METHODS))
+def test_every_built_in_method_loads_as_a_relocalizer_of_its_name(name: str) -> None:
+    m = create_method(name)
+    assert isinstance(m, Relocalizer) and m.name == name
+    assert available_methods()[name].__doc__ == f"built-in {BUILTIN_METHODS[name]}"
+
+
+def test_the_built_in_methods_are_not_entry_points_of_this_project() -> None:
+    """One table names them: the project's own pyproject declares no method."""
+    assert ENTRY_POINT_GROUP not in (Path(__file__).parents[1] / "pyproject.toml").read_text()
+
+
+@pytest.fixture
+def installed(monkeypatch: pytest.MonkeyPatch) -> Iterator[Callable[..., None]]:
+    """``installed(name=value, ...)``: these entry points stand for the environment's, until the test ends."""
+
+    def install(**found: str) -> None:
+        eps = [EntryPoint(name, value, ENTRY_POINT_GROUP) for name, value in found.items()]
+        monkeypatch.setattr(methods, "entry_points", lambda group: eps if group == ENTRY_POINT_GROUP else [])
+        methods._named_methods.cache_clear()
+
+    yield install
+    methods._named_methods.cache_clear()  # read again from the environment
+
+
+def test_a_stale_entry_point_of_a_built_in_is_dropped_silently(installed, caplog: pytest.LogCaptureFixture) -> None:
+    """An install of this project from when its methods were entry points names the same classes."""
+    installed(**{"nearest-frame": BUILTIN_METHODS["nearest-frame"], "outside": "baselines.nearest_frame:NearestFrame"})
+    found = available_methods()
+    assert list(found).count("nearest-frame") == 1 and found["nearest-frame"].__doc__.startswith("built-in ")
+    assert found["outside"].__doc__ == "entry point baselines.nearest_frame:NearestFrame"
+    assert not uses_masks("outside") and not caplog.records
+    with pytest.raises(ConfigError, match="method name 'outside' is taken by baselines.nearest_frame:NearestFrame"):
+        register("outside", NearestFrame)
+
+
+def test_an_entry_point_cannot_take_a_built_in_name(installed, caplog: pytest.LogCaptureFixture) -> None:
+    """It is ignored with one warning line (per process), and the name stays the built-in's."""
+    installed(**{"nearest-frame": "my_package.methods:Mine"})
+    for _ in range(2):
+        assert available_methods()["nearest-frame"].__doc__ == f"built-in {BUILTIN_METHODS['nearest-frame']}"
+    assert isinstance(create_method("nearest-frame"), NearestFrame)
+    assert [r.getMessage() for r in caplog.records if r.levelname == "WARNING"] == [
+        "entry point nearest-frame = my_package.methods:Mine ignored: 'nearest-frame' is the built-in method "
+        "baselines.nearest_frame:NearestFrame; declare yours under another name"
+    ]
 
 
 def test_unknown_method_lists_known_ones():

@@ -1,5 +1,5 @@
-"""List the registered relocalization methods: the ``openreloc_bench.methods`` entry points, and what
-``--plugin`` modules or files register.
+"""List the registered relocalization methods: the built-ins, installed packages' ``openreloc_bench.methods``
+entry points, and what ``--plugin`` modules or files register.
 
   openreloc-bench methods --plugin ./hist_nn.py
 """

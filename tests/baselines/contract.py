@@ -28,7 +28,7 @@ def query_of(scene: Scene, split: str, i: int, masks: bool = False) -> tuple[Que
 
 
 def check_registered(name: str) -> None:
-    """Found through the ``openreloc_bench.methods`` entry points, as a third-party plugin is."""
+    """Found by name in the registry (:data:`~openreloc_bench.methods.BUILTIN_METHODS`) and created from it."""
     assert name in available_methods()
     method = create_method(name)
     assert isinstance(method, Relocalizer) and method.name == name and method.uses_masks is False

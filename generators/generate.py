@@ -27,10 +27,22 @@ from generators.render import Renderer, create_renderer
 from generators.sensor import blend_subframes, exposure_poses, sensor_colour, sensor_depth
 from generators.spec import GENERATOR_VERSION, SceneSpec, SuiteSpec, spec_hash, spec_record
 from generators.trajectories import mapping_path, sample_near_queries, sample_queries, seen_counts
-from generators.variants import LIGHT_SPLITS, Lighting, hidden, light_variants, sample_displacements
+from generators.variants import Lighting, hidden, query_lighting, sample_displacements
 from openreloc_bench import config, geometry
 from openreloc_bench.data import io, paths
-from openreloc_bench.data.scene import DATA_VERSION, SPLITS, SceneWriter, foreign_files, frame_id
+from openreloc_bench.data.scene import DATA_VERSION, SceneWriter, foreign_files, frame_id
+from openreloc_bench.data.splits import (
+    DISPLACED,
+    DISPLACED_SPLIT,
+    LIGHT,
+    MAPPING_SPLIT,
+    NEAR,
+    NEAR_SPLIT,
+    PLAIN,
+    PLAIN_SPLIT,
+    QUERY_SPLIT_TABLE,
+    SPLITS,
+)
 from openreloc_bench.errors import ConfigError, DataError
 from openreloc_bench.processes import pool_worker, workers_stopped_on_interrupt
 
@@ -151,6 +163,9 @@ def render_split(
     return reused
 
 
+RENDER_ORDER = (PLAIN, NEAR, LIGHT, DISPLACED)
+"""The order the query splits are rendered in, by kind (after the mapping split): the displaced split
+last, for it moves objects for good."""
 SENSOR_STREAM = 23
 """Seed stream of the sensor noise (the scene's other random draws use other streams)."""
 MAX_BLUR_STEP_M = 1.0
@@ -217,14 +232,10 @@ def write_scene(spec: SceneSpec, root: Path, resume: bool, progress: bool) -> Pa
             raise ConfigError(f"scene '{spec.name}': {e}") from None
         seen = seen_counts(layout, spec, renderer, queries)
         displacements = sample_displacements(layout, spec, queries[:, :3, 3], seen)
-        lights = light_variants(spec, len(layout.lights))
-        splits: dict[str, tuple[np.ndarray, Lighting]] = {
-            "mapping": (mapping, Lighting()),
-            "query": (queries, Lighting()),
-            "query_near": (near, Lighting()),
-        }
-        splits.update({s: (queries, lights[s]) for s in LIGHT_SPLITS})
-        splits["query_displaced"] = (queries, Lighting())  # last: it moves objects for good
+        lights = query_lighting(spec, len(layout.lights))
+        splits: dict[str, tuple[np.ndarray, Lighting]] = {MAPPING_SPLIT: (mapping, Lighting())}
+        for s in sorted(QUERY_SPLIT_TABLE, key=lambda s: RENDER_ORDER.index(s.kind)):
+            splits[s.name] = (near if s.kind == NEAR else queries, lights[s.name])
         counts = {s: len(p) for s, (p, _) in splits.items()}
         extra = {
             "lighting": {s: asdict(li) for s, (_, li) in splits.items()},
@@ -242,7 +253,7 @@ def write_scene(spec: SceneSpec, root: Path, resume: bool, progress: bool) -> Pa
                     renderer.set_instance_pose(d.id, hidden(d.transform_before))
             for split, (poses, lighting) in splits.items():
                 renderer.set_lighting(lighting.level, lighting.tint, lighting.lights_off, lighting.headlight)
-                if split == "query_displaced":
+                if split == DISPLACED_SPLIT:
                     for d in displacements:
                         T = np.asarray(d.transform_after)
                         renderer.set_instance_pose(d.id, T if d.shown_displaced else hidden(T))
@@ -255,19 +266,19 @@ def write_scene(spec: SceneSpec, root: Path, resume: bool, progress: bool) -> Pa
         info = scene_info(spec, layout, K, counts, extra)
         info["mapping_odometry"] = estimate_mapping_poses(root, writer, mapping, K, progress)
         writer.write_scene_info(info)
-    instances = {s: read_instances(root / s, len(splits[s][0])) for s in ("query", "query_near", "query_displaced")}
+    instances = {s: read_instances(root / s, len(splits[s][0])) for s in (PLAIN_SPLIT, NEAR_SPLIT, DISPLACED_SPLIT)}
     shown = {d.id for d in displacements if d.shown_displaced}
     removed = {d.id for d in displacements if not d.shown_displaced}
-    changes = changes_in_view(instances["query_displaced"], instances["query"], shown, removed, layout.objects())
-    measured = {  # the lighting variants see what query sees
+    changes = changes_in_view(instances[DISPLACED_SPLIT], instances[PLAIN_SPLIT], shown, removed, layout.objects())
+    measured = {  # the lighting variants see what the plain query split sees
         split: (
             poses,
             lighting.level,
-            instances["query" if split in LIGHT_SPLITS else split],
-            changes if split == "query_displaced" else None,
+            instances[split if split in instances else PLAIN_SPLIT],
+            changes if split == DISPLACED_SPLIT else None,
         )
         for split, (poses, lighting) in splits.items()
-        if split != "mapping"
+        if split != MAPPING_SPLIT
     }
     writer.write_difficulty(measure_difficulty(mapping, measured, layout.objects()))
     return root

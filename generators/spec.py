@@ -24,6 +24,7 @@ from typing import Literal
 
 from generators.sensor import SensorSpec
 from openreloc_bench import __version__, config
+from openreloc_bench.data.splits import LIGHT, QUERY_SPLIT_TABLE, split_names
 from openreloc_bench.errors import ConfigError
 
 GENERATOR_VERSION = f"{__version__}+gen4"
@@ -54,7 +55,7 @@ MAX_OBJECTS_PER_M2 = 2.5
 """Upper bound on objects per square metre of the smallest possible room (floor + surface + wall items)."""
 
 MAX_QUERIES = 10_000
-"""Upper bound on ``n_query``: each query is rendered in seven splits, so more is a typo, not a benchmark."""
+"""Upper bound on ``n_query``: each query is rendered in every query split, so more is a typo, not a benchmark."""
 
 MIN_MAPPING_STEP_M = 0.01
 MIN_MAPPING_STEP_DEG = 0.5
@@ -109,8 +110,8 @@ class SceneSpec:
     max_mapping_frames: int = 0
     """Cap on mapping frames (subsampled evenly along the path); 0 = no cap."""
     n_query: int = 50
-    """Query poses (shared by query, query_light1..4 and query_displaced); query_near has as many of its
-    own, along the mapping path."""
+    """Query poses (shared by the query split and its variants); query_near has as many of its own, along
+    the mapping path."""
     query_min_distance: float = 0.3
     """Every query camera centre is at least this far (m) from every mapping camera centre..."""
     query_min_angle: float = 20.0
@@ -124,8 +125,9 @@ class SceneSpec:
     """...removed from it..."""
     added_share: float = 0.05
     """...and added to it (absent from every other split); each drawn among the objects the queries see."""
-    light_levels: list[float] = field(default_factory=lambda: [0.7, 0.5, 0.35, 0.2])
-    """Brightness of query_light1..4 relative to the mapping lighting (progressive decay, each in (0, 1])."""
+    light_levels: list[float] = field(default_factory=lambda: [s.level for s in QUERY_SPLIT_TABLE if s.kind == LIGHT])
+    """Brightness of each lighting variant relative to the mapping lighting, in the split table's order
+    (progressive decay, each in (0, 1]; default: the table's levels)."""
     backend: Literal["mujoco", "pyrender"] = "mujoco"
     """Renderer backend: MuJoCo (exact, fast), or pyrender (the optional extra; physically based shading).
     Both draw the same geometry and textures, asset packs' included."""
@@ -229,8 +231,9 @@ def validate_scene(spec: SceneSpec) -> None:
             f"scene '{n}': 'mapping_step_m' / 'mapping_step_deg' must be at least {MIN_MAPPING_STEP_M} m / "
             f"{MIN_MAPPING_STEP_DEG} deg, got {spec.mapping_step_m} / {spec.mapping_step_deg}"
         )
-    if len(spec.light_levels) != 4 or any(not 0 < v <= 1 for v in spec.light_levels):
-        raise ConfigError(f"scene '{n}': 'light_levels' must be 4 values in (0, 1], got {spec.light_levels}")
+    n_light = len(split_names(LIGHT))
+    if len(spec.light_levels) != n_light or any(not 0 < v <= 1 for v in spec.light_levels):
+        raise ConfigError(f"scene '{n}': 'light_levels' must be {n_light} values in (0, 1], got {spec.light_levels}")
     if not 16 <= spec.width <= 4096 or not 16 <= spec.height <= 4096:
         raise ConfigError(f"scene '{n}': 'width'/'height' must be in [16, 4096]")
     for pack in spec.assets.packs:

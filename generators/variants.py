@@ -1,8 +1,8 @@
 """Query-split variants: progressive illumination decay and displaced objects (same query poses).
 
-``query_light1..4`` follow the paper's four levels of decay: each is dimmer than the last
-(``SceneSpec.light_levels``), the colour drifts warm / cool, and the last two switch a growing share
-of the room lights off and the camera-mounted light too, as a hand-held camera has none.
+Each query split is lit as its row of :data:`~openreloc_bench.data.splits.QUERY_SPLIT_TABLE` says: the
+lighting variants dimmer (``SceneSpec.light_levels``), tinted, with a share of the room lights off and,
+in the dark ones, the camera-mounted light too, as a hand-held camera has none.
 ``query_displaced`` moves, rotates, removes and adds a share of each room's objects, drawn among those
 the queries see (human-style rearrangement); the mapping split is never affected, and every change is
 recorded in ``query_displaced/displacements.json``.
@@ -19,11 +19,7 @@ from scipy.spatial.transform import Rotation
 
 from generators.layout import Instance, Layout
 from generators.spec import SceneSpec
-
-LIGHT_SPLITS = ("query_light1", "query_light2", "query_light3", "query_light4")
-_TINTS = ((1.0, 0.97, 0.92), (1.0, 0.86, 0.70), (0.78, 0.86, 1.0), (1.0, 0.72, 0.52))
-_OFF_SHARE = (0.0, 0.0, 0.25, 0.5)
-_HEADLIGHT = (True, True, False, False)
+from openreloc_bench.data.splits import LIGHT, QUERY_SPLIT_TABLE, split_names
 
 
 @dataclass
@@ -37,15 +33,18 @@ class Lighting:
     """The light along the camera's axis (off in the dark splits: darkness is not a dimmer)."""
 
 
-def light_variants(spec: SceneSpec, n_lights: int) -> dict[str, Lighting]:
-    """Lighting of each query_light split (deterministic in the seed)."""
+def query_lighting(spec: SceneSpec, n_lights: int) -> dict[str, Lighting]:
+    """Lighting of every query split, as its row of the split table says, at the level the spec gives each
+    lighting variant; the lights switched off are drawn once (deterministic in the seed), each split
+    switching off the first of them."""
     rng = np.random.default_rng([spec.seed, 17])
     order = rng.permutation(n_lights)
+    levels = dict(zip(split_names(LIGHT), spec.light_levels))
     out = {}
-    for k, split in enumerate(LIGHT_SPLITS):
-        n_off = min(int(math.floor(_OFF_SHARE[k] * n_lights)), max(n_lights - 1, 0))
+    for split in QUERY_SPLIT_TABLE:
+        n_off = min(int(math.floor(split.lights_off * n_lights)), max(n_lights - 1, 0))
         off = tuple(sorted(int(i) for i in order[:n_off]))
-        out[split] = Lighting(float(spec.light_levels[k]), _TINTS[k], off, _HEADLIGHT[k])
+        out[split.name] = Lighting(float(levels.get(split.name, split.level)), split.tint, off, split.headlight)
     return out
 
 

@@ -26,7 +26,7 @@ from pathlib import Path
 from openreloc_bench import config
 from openreloc_bench.commands.options import TRACK_HELP, add_plugin_argument, add_track_argument, comma_list
 from openreloc_bench.data import paths
-from openreloc_bench.data.scene import QUERY_SPLITS
+from openreloc_bench.data.splits import QUERY_SPLITS
 from openreloc_bench.errors import ConfigError
 from openreloc_bench.harness import evaluation, runner
 from openreloc_bench.harness.ablations import ABLATED_METHOD, ROBUSTNESS_ROWS

@@ -29,7 +29,8 @@ from openreloc_bench import geometry
 from openreloc_bench.commands.options import TRACK_HELP, add_method_arguments, add_track_argument, method_overrides
 from openreloc_bench.data import io, paths
 from openreloc_bench.data.results import write_results
-from openreloc_bench.data.scene import QUERY_SPLITS, Scene
+from openreloc_bench.data.scene import Scene
+from openreloc_bench.data.splits import QUERY_SPLITS
 from openreloc_bench.data.types import SceneSequence
 from openreloc_bench.errors import ConfigError
 from openreloc_bench.harness.cache import check_map_source

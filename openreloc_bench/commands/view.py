@@ -28,7 +28,8 @@ from openreloc_bench import view3d
 from openreloc_bench.commands.options import add_plugin_argument
 from openreloc_bench.data import io, mapfile, paths
 from openreloc_bench.data.results import read_submission
-from openreloc_bench.data.scene import QUERY_SPLITS, Scene
+from openreloc_bench.data.scene import Scene
+from openreloc_bench.data.splits import QUERY_SPLITS
 from openreloc_bench.errors import ConfigError, DataError
 from openreloc_bench.harness.cache import check_map_source
 from openreloc_bench.methods import MapPoints, available_methods, create_method

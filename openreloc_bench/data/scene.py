@@ -30,18 +30,10 @@ import pandas as pd
 
 from openreloc_bench import geometry
 from openreloc_bench.data import io
+from openreloc_bench.data.splits import SPLITS
 from openreloc_bench.data.types import FrameRecord, SceneSequence, check_intrinsics
 from openreloc_bench.errors import DataError
 from openreloc_bench.tracks import ORACLE_MASK, RecordedTrack
-
-LIGHT_SPLITS = ("query", "query_light1", "query_light2", "query_light3", "query_light4")
-"""The query split and its relit copies, by light level (0: the scene's own lights, up to 4), on the same poses."""
-DISPLACED_SPLIT = "query_displaced"
-"""The query split's poses with some objects moved."""
-SPLITS = ("mapping", *LIGHT_SPLITS, DISPLACED_SPLIT, "query_near")
-QUERY_SPLITS = SPLITS[1:]
-LIGHT_SPLITS = ("query", *(s for s in SPLITS if s.startswith("query_light")))
-"""The query split under the mapping's lighting, then its variants under the four decayed lightings."""
 
 DATA_VERSION = 3
 """Version of the generated benchmark data, recorded in ``scene.json`` as ``data_version``; a reader

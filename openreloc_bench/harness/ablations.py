@@ -10,7 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from openreloc_bench.data.scene import DISPLACED_SPLIT, LIGHT_SPLITS
+from openreloc_bench.data.splits import QUERY_SPLIT_TABLE
 
 ABLATED_METHOD = "openreloc"
 """Registry name of the method the ablation rows switch parts of."""
@@ -53,12 +53,8 @@ ABLATION_ROWS: tuple[Row, ...] = (
 )
 FULL_ROW = Row("full", "Ours Full")
 
-ROBUSTNESS_ROWS: tuple[Row, ...] = (
-    Row(LIGHT_SPLITS[0], "Original"),
-    *(Row(split, f"Lighting {level}") for level, split in enumerate(LIGHT_SPLITS) if level),
-    Row(DISPLACED_SPLIT, "Displaced objects"),
-)
-"""Robustness settings: each is a query split of the scene (key = split name)."""
+ROBUSTNESS_ROWS: tuple[Row, ...] = tuple(Row(s.name, s.title) for s in QUERY_SPLIT_TABLE if s.shares_query_poses)
+"""Robustness settings: the query split and its variants (key = split name), from the split table."""
 
 
 def ablation_label(row: Row) -> str:

@@ -23,7 +23,7 @@ import pandas as pd
 
 from openreloc_bench import config, plugins
 from openreloc_bench.data import io, paths
-from openreloc_bench.data.scene import QUERY_SPLITS
+from openreloc_bench.data.splits import QUERY_SPLITS
 from openreloc_bench.errors import ConfigError, DataError
 from openreloc_bench.harness import cache, runner
 from openreloc_bench.harness.ablations import ABLATED_METHOD

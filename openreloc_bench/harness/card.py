@@ -27,7 +27,8 @@ from PIL import Image  # noqa: E402
 
 from openreloc_bench import bars  # noqa: E402
 from openreloc_bench.data import io, paths  # noqa: E402
-from openreloc_bench.data.scene import DATA_VERSION, QUERY_SPLITS, Scene, check_scene_info, other_version  # noqa: E402
+from openreloc_bench.data.scene import DATA_VERSION, Scene, check_scene_info, other_version  # noqa: E402
+from openreloc_bench.data.splits import QUERY_SPLITS  # noqa: E402
 from openreloc_bench.errors import DataError  # noqa: E402
 from openreloc_bench.harness.suites import scene_state, suite_spec  # noqa: E402
 from openreloc_bench.harness.tables import md_table  # noqa: E402

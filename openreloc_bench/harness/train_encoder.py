@@ -20,7 +20,7 @@ import torch
 
 from openreloc_bench import config as cfgmod
 from openreloc_bench.data import io, paths
-from openreloc_bench.data.scene import LIGHT_SPLITS
+from openreloc_bench.data.splits import LIGHT_SPLITS
 from openreloc_bench.errors import ConfigError
 from openreloc_bench.harness.training_data import ENCODER_DATA, held_out_seeds, training_scene_sets
 from openreloc_bench.vision import create_segmenter, segmenter_fingerprint

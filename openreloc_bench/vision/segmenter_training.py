@@ -34,7 +34,8 @@ from scipy.special import ndtri
 from tqdm import tqdm
 
 from openreloc_bench.data import io
-from openreloc_bench.data.scene import LIGHT_SPLITS, Scene
+from openreloc_bench.data.scene import Scene
+from openreloc_bench.data.splits import DISPLACED_SPLIT, LIGHT_SPLITS, MAPPING_SPLIT
 from openreloc_bench.errors import ConfigError
 from openreloc_bench.vision.learned_segment import (
     BoundaryNet,
@@ -47,7 +48,7 @@ from openreloc_bench.vision.learned_segment import (
 )
 from openreloc_bench.vision.training import training_device
 
-FRAME_SPLITS = ("mapping", *LIGHT_SPLITS, "query_displaced")
+FRAME_SPLITS = (MAPPING_SPLIT, *LIGHT_SPLITS, DISPLACED_SPLIT)
 
 
 @dataclass

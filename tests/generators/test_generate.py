@@ -21,14 +21,8 @@ from generators.spec import SceneSpec, load_suite, spec_hash
 from generators.trajectories import mapping_path
 from openreloc_bench import config, geometry
 from openreloc_bench.data import io
-from openreloc_bench.data.scene import (
-    DATA_VERSION,
-    DIFFICULTY_COLUMNS,
-    QUERY_SPLITS,
-    SPLITS,
-    STRUCTURAL_CATEGORIES,
-    Scene,
-)
+from openreloc_bench.data.scene import DATA_VERSION, DIFFICULTY_COLUMNS, STRUCTURAL_CATEGORIES, Scene
+from openreloc_bench.data.splits import QUERY_SPLITS, SPLITS
 from openreloc_bench.errors import DataError
 
 TINY = dict(

@@ -6,21 +6,32 @@ import numpy as np
 
 from generators.layout import build_layout
 from generators.spec import SceneSpec
-from generators.variants import CHANGE_KINDS, LIGHT_SPLITS, hidden, light_variants, sample_displacements
+from generators.variants import CHANGE_KINDS, Lighting, hidden, query_lighting, sample_displacements
+from openreloc_bench.data.splits import LIGHT, QUERY_SPLITS, split_names
 
 SPEC = SceneSpec(name="v", seed=9, objects_per_room=16, displaced_share=0.25, removed_share=0.125, added_share=0.0625)
 
 
 def test_light_variants_progressive() -> None:
-    v = light_variants(SPEC, 8)
-    assert list(v) == list(LIGHT_SPLITS)
-    levels = [v[s].level for s in LIGHT_SPLITS]
-    assert levels == sorted(levels, reverse=True) and levels[0] < 1.0
-    off = [len(v[s].lights_off) for s in LIGHT_SPLITS]
+    v = query_lighting(SPEC, 8)
+    assert list(v) == list(QUERY_SPLITS)
+    light = split_names(LIGHT)
+    levels = [v[s].level for s in light]
+    assert levels == SPEC.light_levels == sorted(levels, reverse=True) and levels[0] < 1.0
+    off = [len(v[s].lights_off) for s in light]
     assert off[0] == 0 and off[-1] > 0 and off == sorted(off) and max(off) < 8
     assert v["query_light2"].tint != v["query_light1"].tint
-    assert light_variants(SPEC, 1)["query_light4"].lights_off == ()  # never every light off
-    assert [v[s].headlight for s in LIGHT_SPLITS] == [True, True, False, False]  # dark splits: no camera light
+    assert query_lighting(SPEC, 1)["query_light4"].lights_off == ()  # never every light off
+    heads = [v[s].headlight for s in light]
+    assert heads[0] and not heads[-1] and heads == sorted(heads, reverse=True)  # dark splits: no camera light
+    assert all(v[s] == Lighting() for s in QUERY_SPLITS if s not in light)  # the others: the mapping's
+
+
+def test_a_suite_sets_the_light_levels() -> None:
+    levels = [v / 2 for v in SPEC.light_levels]
+    dim = query_lighting(SceneSpec(name="v", seed=9, light_levels=levels), 8)
+    assert [dim[s].level for s in split_names(LIGHT)] == levels
+    assert [dim[s].lights_off for s in QUERY_SPLITS] == [v.lights_off for v in query_lighting(SPEC, 8).values()]
 
 
 def test_displacements_valid() -> None:

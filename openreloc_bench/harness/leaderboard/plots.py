@@ -20,7 +20,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from openreloc_bench.data.scene import LIGHT_SPLITS, Scene  # noqa: E402
+from openreloc_bench.data.scene import Scene  # noqa: E402
+from openreloc_bench.data.splits import LIGHT_SPLITS, QUERY_SPLIT_BY_NAME  # noqa: E402
 from openreloc_bench.errors import DataError  # noqa: E402
 from openreloc_bench.harness.leaderboard.rows import (  # noqa: E402
     DIFFICULTY_BINS,
@@ -177,7 +178,8 @@ def plot_recall_vs_map_size(suite: pd.DataFrame, path: Path, colors: dict[str, A
     return list(grid.flat[: len(groups)])
 
 
-LIGHT_NAMES = ("original", "light 1", "light 2", "light 3", "light 4")
+LIGHT_LABELS = tuple(QUERY_SPLIT_BY_NAME[s].label for s in LIGHT_SPLITS)
+"""The ticks of the lighting plot: the plain query split's, then each lighting variant's (the split table's labels)."""
 
 
 def plot_recall_vs_lighting(suite: pd.DataFrame, path: Path, colors: dict[str, Any] | None = None) -> list[plt.Axes]:
@@ -194,11 +196,11 @@ def plot_recall_vs_lighting(suite: pd.DataFrame, path: Path, colors: dict[str, A
     for (method, track), g in runs:
         g = g.set_index("split").reindex(LIGHT_SPLITS)
         ran = g["recall_50cm"].notna().to_numpy()  # a line joins the levels run, skipping the others
-        alone = "" if ran.sum() > 1 else f", {LIGHT_NAMES[int(ran.argmax())]} only"
+        alone = "" if ran.sum() > 1 else f", {LIGHT_LABELS[int(ran.argmax())]} only"
         look = {"marker": TRACK_MARKERS.get(track, "D"), "color": colors[method]}
         ax.plot(x[ran], g["recall_50cm"][ran], "-", **look, label=f"{method} ({track}){alone}")
         ax.plot(x[ran], g["recall_25cm"][ran], "--", **look, mfc="none", alpha=0.7)
-    ax.set_xticks(x, LIGHT_NAMES)
+    ax.set_xticks(x, LIGHT_LABELS)
     ax.set(xlabel="lighting decay level", ylabel="recall [%]  (solid @50cm, dashed @25cm)", ylim=(-3, 103))
     ax.set_title("Recall vs lighting")
     ax.grid(alpha=0.3)

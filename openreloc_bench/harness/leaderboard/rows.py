@@ -12,7 +12,7 @@ import numpy as np
 import pandas as pd
 
 from openreloc_bench.data.runs import QUERY_COLUMNS, backfill_difficulty, load_map_records, read_query_csv
-from openreloc_bench.data.scene import DISPLACED_SPLIT
+from openreloc_bench.data.splits import DISPLACED_SPLIT, PLAIN_SPLIT
 from openreloc_bench.errors import DataError
 from openreloc_bench.harness.ablations import ROBUSTNESS_ROWS
 from openreloc_bench.harness.metrics import summarize
@@ -65,7 +65,7 @@ TRACK_NAMES = {
 """What the verdict calls each track's comparison (:func:`track_groups`)."""
 
 
-HEADLINE_SPLIT = "query"
+HEADLINE_SPLIT = PLAIN_SPLIT
 """The split a board's verdict reads (the other splits are the robustness variants of it)."""
 
 

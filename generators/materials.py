@@ -7,12 +7,19 @@ whole wall has the same grain as one covering a cup, and never repeats across th
 periodic surface would let a relocalizer explain its matches with a pose shifted by whole periods,
 which no real room allows. Every texture still tiles without a seam in both image axes (spectral noise
 from an FFT, stripes with a whole number of periods), as a seam would show up as a false edge.
+
+A part may instead carry a photograph of its material (``surface="photo"``: robosuite's MIT-licensed
+texture images, kept as luminance in ``asset_library/photos.npz`` and tinted like the patterns), and a
+wall may be bare paint (``surface="bare"``: its material's fine grain without the metre-scale stains).
 """
 
 from __future__ import annotations
 
 import zlib
+from functools import lru_cache
+from pathlib import Path
 
+import cv2
 import numpy as np
 
 from openreloc_bench.errors import ConfigError
@@ -80,6 +87,55 @@ def texture_size(metres: float) -> int:
     """Pixels across a texture covering ``metres`` (64 for one :data:`DETAIL_M` tile): a multiple of 8, as
     OpenGL reads RGB rows 4-byte aligned (a 701-pixel row would be read with a skew)."""
     return int(min(MAX_TEXTURE_PX, 8 * np.ceil(max(metres, DETAIL_M) * PX_PER_M / 8 - 1e-9)))
+
+
+SURFACES = ("pattern", "photo", "bare")
+"""How a procedural texture is made: the material's noise pattern, a photograph of the material, or the
+pattern without its metre-scale wear (bare paint)."""
+
+PHOTO_M = 1.5
+"""Width of surface (m) one photograph covers; a part wider than this keeps its pattern (a photograph
+stretched further would show its pixels, and repeated it would show the same planks twice)."""
+
+
+@lru_cache(maxsize=1)
+def _photos() -> tuple[np.ndarray, np.ndarray]:
+    """(N, 256, 256) uint8 luminance photographs and the material of each."""
+    with np.load(Path(__file__).parent / "asset_library" / "photos.npz") as data:
+        return data["images"], data["materials"]
+
+
+def photo_materials() -> frozenset[str]:
+    """The materials there are photographs of."""
+    return frozenset(str(m) for m in _photos()[1])
+
+
+def _seamless(image: np.ndarray) -> np.ndarray:
+    """``image`` made to tile: along each axis, blended with itself shifted by half a period, with the
+    shifted copy's weight rising linearly to 1 at the borders (where it is continuous across the wrap) and
+    falling to 0 where its own seam lies; the blend keeps the contrast (weights normalised in norm 2)."""
+    n = image.shape[0]
+    w = 1 - np.abs(np.arange(n) + 0.5 - n / 2) / (n / 2)
+    norm = np.sqrt(w**2 + (1 - w) ** 2)
+    mean = image.mean()
+    out = image - mean
+    for axis, weight in ((1, w[None, :]), (0, w[:, None])):
+        out = (weight * out + (1 - weight) * np.roll(out, n // 2, axis=axis)) / (
+            norm[None, :] if axis else norm[:, None]
+        )
+    return out + mean
+
+
+def _photo_luminance(material: str, rng: np.random.Generator, size: int, metres: float) -> np.ndarray:
+    """Brightness factor around 1 from a photograph of ``material``: a random window of one of its
+    photographs, as wide as ``metres`` of surface (:data:`PHOTO_M` per photograph), made to tile."""
+    images, materials = _photos()
+    image = images[int(rng.choice(np.flatnonzero(materials == material)))]
+    side = max(8, round(image.shape[0] * metres / PHOTO_M))
+    top, left = (int(v) for v in rng.integers(0, image.shape[0] - side + 1, size=2))
+    crop = image[top : top + side, left : left + side].astype(np.float64)
+    resized = cv2.resize(crop, (size, size), interpolation=cv2.INTER_AREA if size < side else cv2.INTER_LINEAR)
+    return np.clip(_seamless(resized) / max(resized.mean(), 1.0), 0.25, 2.0)
 
 
 def _spectral_noise(
@@ -171,14 +227,21 @@ def _wear(rng: np.random.Generator, size: int, metres: float) -> np.ndarray:
 
 
 def make_texture(
-    material: str, rgb: tuple[float, float, float], seed: int, size: int = 64, metres: float = DETAIL_M
+    material: str,
+    rgb: tuple[float, float, float],
+    seed: int,
+    size: int = 64,
+    metres: float = DETAIL_M,
+    surface: str = "pattern",
 ) -> np.ndarray:
     """uint8 (size, size, 3) tileable procedural texture of ``material`` tinted by sRGB ``rgb``, covering
     ``metres`` of surface.
 
-    Deterministic in (material, rgb, seed, size, metres). The pattern modulates brightness around the
-    tint; a small additive term keeps the pattern visible on near-black colours. A texture wider than
-    :data:`DETAIL_M` also varies at metre scale (:func:`_wear`).
+    Deterministic in (material, rgb, seed, size, metres, surface). The pattern modulates brightness around
+    the tint; a small additive term keeps the pattern visible on near-black colours. A texture wider than
+    :data:`DETAIL_M` also varies at metre scale (:func:`_wear`), except bare paint. ``surface="photo"``
+    takes the brightness from a photograph of the material instead, where there is one and the surface is
+    no wider than :data:`PHOTO_M` (else the pattern).
     """
     if material not in MATERIALS:
         raise ConfigError(f"unknown material '{material}' (known: {', '.join(MATERIALS)})")
@@ -191,9 +254,14 @@ def make_texture(
         raise ConfigError(f"texture size must be an integer >= 8, got {size!r}")
     if not (isinstance(metres, (int, float)) and np.isfinite(metres) and metres > 0):
         raise ConfigError(f"texture width must be a positive number of metres, got {metres!r}")
+    if surface not in SURFACES:
+        raise ConfigError(f"unknown texture surface '{surface}' (known: {', '.join(SURFACES)})")
     rng = np.random.default_rng([int(seed), zlib.crc32(material.encode())])
-    lum = _luminance(material, rng, int(size), float(metres))
-    if metres > DETAIL_M:
-        lum = lum * _wear(rng, int(size), float(metres))
+    if surface == "photo" and material in photo_materials() and metres <= PHOTO_M:
+        lum = _photo_luminance(material, rng, int(size), float(metres))
+    else:
+        lum = _luminance(material, rng, int(size), float(metres))
+        if metres > DETAIL_M and surface != "bare":
+            lum = lum * _wear(rng, int(size), float(metres))
     img = tint[None, None, :] * lum[..., None] + 0.15 * (lum[..., None] - 1)
     return np.round(np.clip(img, 0.0, 1.0) * 255).astype(np.uint8)

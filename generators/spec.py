@@ -27,7 +27,7 @@ from openreloc_bench import __version__, config
 from openreloc_bench.data.splits import LIGHT, QUERY_SPLIT_TABLE, split_names
 from openreloc_bench.errors import ConfigError
 
-GENERATOR_VERSION = f"{__version__}+gen4"
+GENERATOR_VERSION = f"{__version__}+gen5"
 """Recorded in scene.json and part of :func:`spec_hash`; bump the suffix whenever output for the same spec
 changes, so cached maps and results of scenes from an older generator are not reused.
 gen2: rooms stay connected (pendant lights and one-cell gaps no longer cut corridors) and queries are
@@ -35,7 +35,9 @@ drawn only from the walkable region the mapping sequence covers.
 gen3: benchmark data v2 (:data:`~openreloc_bench.data.scene.DATA_VERSION`): surfaces without exact
 periodicity, the ``query_near`` split, ``difficulty.csv``.
 gen4: benchmark data v3: a sensor model, changes among the objects the queries see (moved, removed,
-added), queries without a minimum of visible objects, dark splits without the camera's light."""
+added), queries without a minimum of visible objects, dark splits without the camera's light.
+gen5: benchmark data v3 continued: photographed materials on half the objects' parts, bare painted walls
+in half the rooms."""
 
 TRAINING_SEED_MIN = 1_000_000
 """Seeds >= this are reserved for TRAINING scenes (below :data:`VALIDATION_SEED_MIN`; the encoder's,
@@ -125,6 +127,12 @@ class SceneSpec:
     """...removed from it..."""
     added_share: float = 0.05
     """...and added to it (absent from every other split); each drawn among the objects the queries see."""
+    bare_wall_share: float = 0.5
+    """Share of rooms whose walls are bare paint: the plaster's fine grain without the metre-scale stains
+    and wear of the others (real painted walls are mostly plain, and hard for keypoints)."""
+    photo_share: float = 0.5
+    """Share of the objects' parts textured with a photograph of their material (wood, plaster, ceramic,
+    metal, fabric, stone; robosuite's MIT-licensed images) rather than its procedural pattern."""
     light_levels: list[float] = field(default_factory=lambda: [s.level for s in QUERY_SPLIT_TABLE if s.kind == LIGHT])
     """Brightness of each lighting variant relative to the mapping lighting, in the split table's order
     (progressive decay, each in (0, 1]; default: the table's levels)."""
@@ -217,7 +225,7 @@ def validate_scene(spec: SceneSpec) -> None:
         "removed_share": spec.removed_share,
         "added_share": spec.added_share,
     }
-    for key, v in shares.items():
+    for key, v in {**shares, "bare_wall_share": spec.bare_wall_share, "photo_share": spec.photo_share}.items():
         if not 0 <= v <= 1:
             raise ConfigError(f"scene '{n}': '{key}' must be in [0, 1], got {v}")
     if sum(shares.values()) > 1:

@@ -40,6 +40,9 @@ class Part:
     uv: np.ndarray | None = None
     """(V, 2) texture coordinates of the mesh's vertices for :attr:`image` (OpenGL: v = 0 at the
     image's bottom row)."""
+    surface: str = "pattern"
+    """How a procedural texture is made (:data:`generators.materials.SURFACES`): the material's pattern, a
+    photograph of the material, or bare paint."""
 
 
 @dataclass

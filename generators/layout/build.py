@@ -39,6 +39,7 @@ def build_layout(spec: SceneSpec) -> Layout:
     for f in range(spec.floors):
         for room in draft.rooms_on(f):
             furnisher.furnish(room)
+    draft.finish_surfaces()
     return draft.layout(footprint)
 
 

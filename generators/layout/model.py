@@ -8,7 +8,8 @@ frames, windows, stairs, railings) or furnished; :class:`Layout` is a whole scen
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import zlib
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 
 import networkx as nx
@@ -16,7 +17,7 @@ import numpy as np
 import trimesh
 
 from generators.assets import Part
-from generators.materials import COLOURS
+from generators.materials import COLOURS, photo_materials
 from generators.spec import SceneSpec
 from openreloc_bench.data.scene import ObjectInfo
 
@@ -24,6 +25,9 @@ WALL_T = 0.1
 """Wall thickness (m)."""
 SLAB_T = 0.1
 """Floor and ceiling slab thickness (m)."""
+BARE_WALLS_STREAM = 31
+PHOTOS_STREAM = 37
+"""Tags of the random streams of bare walls and photographed parts (apart from the layout's stream)."""
 STOREY_GAP = 0.3
 """Vertical distance from one floor's ceiling surface to the next floor's floor surface (m)."""
 DOOR_W, DOOR_H = 0.9, 2.1
@@ -180,6 +184,30 @@ class LayoutDraft:
     def tex_seed(self) -> int:
         return int(self.rng.integers(1 << 30))
 
+    def bare_walls(self, room: str) -> bool:
+        """Whether ``room``'s walls are bare paint (``spec.bare_wall_share`` of the rooms): drawn from the
+        seed and the room's name, not from the layout's stream, so the rest of the layout does not move."""
+        draw = np.random.default_rng([self.spec.seed, zlib.crc32(room.encode()), BARE_WALLS_STREAM]).random()
+        return bool(draw < self.spec.bare_wall_share)
+
+    def finish_surfaces(self) -> None:
+        """Give ``spec.photo_share`` of the objects' parts a photograph of their material for a texture
+        (where there is one), each part's draw from the seed and its texture seed, so identical copies
+        stay identical and the layout's stream does not move."""
+        photographed = photo_materials()
+        for inst in self.instances:
+            if inst.structural:
+                continue
+            inst.parts = [
+                replace(p, surface="photo")
+                if p.image is None
+                and p.material in photographed
+                and np.random.default_rng([self.spec.seed, p.texture_seed, PHOTOS_STREAM]).random()
+                < self.spec.photo_share
+                else p
+                for p in inst.parts
+            ]
+
     def add(self, **kw) -> Instance:
         """A new instance, numbered after the last one."""
         inst = Instance(id=len(self.instances) + 1, **kw)
@@ -210,6 +238,6 @@ def box_mesh(lo: np.ndarray | tuple, hi: np.ndarray | tuple) -> trimesh.Trimesh:
     return trimesh.creation.box(extents=hi - lo, transform=trimesh.transformations.translation_matrix((lo + hi) / 2))
 
 
-def make_part(meshes: list[trimesh.Trimesh], material: str, colour: str, seed: int) -> Part:
+def make_part(meshes: list[trimesh.Trimesh], material: str, colour: str, seed: int, surface: str = "pattern") -> Part:
     """One part of ``meshes`` in a named colour, its texture drawn from ``seed``."""
-    return Part(trimesh.util.concatenate(meshes), material, COLOURS[colour], seed)
+    return Part(trimesh.util.concatenate(meshes), material, COLOURS[colour], seed, surface=surface)

@@ -149,7 +149,8 @@ def add_walls(
                     continue
                 off = (-h, 0.0) if k == 0 else (0.0, h)
                 pieces = _wall_pieces(axis, fixed + off[0], fixed + off[1], ea, eb, holes, z0, H)
-                parts.append(make_part(pieces, "plaster", wall_colour[room.name], draft.tex_seed()))
+                surface = "bare" if draft.bare_walls(room.name) else "pattern"
+                parts.append(make_part(pieces, "plaster", wall_colour[room.name], draft.tex_seed(), surface))
             outer_side = [k for k in (0, 1) if sides[k] is None]
             for k in outer_side:  # exterior face: plain grey render
                 off = (-h, 0.0) if k == 0 else (0.0, h)

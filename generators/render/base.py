@@ -170,7 +170,8 @@ def part_surface(part: Part) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.nda
     if part.image is None:
         mapping = TextureMapping.of(part)
         v, n, uv, f = triplanar_uv(np.asarray(part.mesh.vertices), np.asarray(part.mesh.faces), mapping)
-        return v, n, uv, f, make_texture(part.material, part.rgb, part.texture_seed, mapping.size, mapping.metres)
+        texture = make_texture(part.material, part.rgb, part.texture_seed, mapping.size, mapping.metres, part.surface)
+        return v, n, uv, f, texture
     mesh = part.mesh
     return (
         np.asarray(mesh.vertices, dtype=np.float64),

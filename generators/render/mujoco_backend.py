@@ -89,10 +89,15 @@ def _texture_keys(parts: list[Part]) -> Callable[[Part], tuple]:
 
 
 def _appearance(part: Part) -> tuple:
-    """(material, colour, texture width) of a part, the colour rounded so float noise never splits a
+    """(material, surface, colour, texture width) of a part, the colour rounded so float noise never splits a
     texture; parts share a texture only within one appearance, so a folded seed never stretches a
     texture made for a part of another size."""
-    return (part.material, tuple(round(float(c), 6) for c in part.rgb), round(TextureMapping.of(part).metres, 4))
+    return (
+        part.material,
+        part.surface,
+        tuple(round(float(c), 6) for c in part.rgb),
+        round(TextureMapping.of(part).metres, 4),
+    )
 
 
 def build_mjcf(layout: Layout, max_width: int, max_height: int) -> tuple[str, dict[str, bytes], list[int]]:

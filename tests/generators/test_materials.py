@@ -5,7 +5,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from generators.materials import COLOURS, DETAIL_M, MATERIALS, PX_PER_M, make_texture, texture_size
+from generators.materials import (
+    COLOURS,
+    DETAIL_M,
+    MATERIALS,
+    PHOTO_M,
+    PX_PER_M,
+    make_texture,
+    photo_materials,
+    texture_size,
+)
 from openreloc_bench.errors import ConfigError
 
 REQUIRED_MATERIALS = ("wood", "fabric", "plaster", "metal", "ceramic", "paper", "plastic", "glass", "leather", "stone")
@@ -93,3 +102,38 @@ def test_bad_texture_arguments_raise_config_error(kwargs, word):
     args = {"material": "wood", "rgb": (0.5, 0.5, 0.5), "seed": 0, "size": 16} | kwargs
     with pytest.raises(ConfigError, match=word):
         make_texture(**args)
+
+
+@pytest.mark.parametrize("material", sorted(photo_materials()))
+def test_photographed_texture_is_tinted_and_tiles(material):
+    """A photograph of the material, not its pattern; tinted like the pattern; seamless; deterministic."""
+    photo = make_texture(material, COLOURS["blue"], seed=5, size=128, metres=1.0, surface="photo")
+    pattern = make_texture(material, COLOURS["blue"], seed=5, size=128, metres=1.0)
+    assert not np.array_equal(photo, pattern)
+    assert np.array_equal(photo, make_texture(material, COLOURS["blue"], seed=5, size=128, metres=1.0, surface="photo"))
+    assert photo[..., 2].mean() > photo[..., 0].mean()  # blue stays blue
+    t = photo.astype(float).mean(axis=2)
+    for axis in (0, 1):
+        inner = np.abs(np.diff(t, axis=axis)).mean()
+        wrap = np.abs(np.take(t, 0, axis=axis) - np.take(t, -1, axis=axis)).mean()
+        assert wrap <= 3 * inner + 2.0, (material, axis, wrap, inner)
+
+
+def test_photographs_only_where_there_is_one_and_the_surface_fits():
+    """Materials without photographs, and surfaces wider than one photograph, keep their pattern."""
+    assert "wood" in photo_materials() and "paper" not in photo_materials()
+    args = (COLOURS["red"], 2, texture_size(2 * PHOTO_M), 2 * PHOTO_M)
+    assert np.array_equal(make_texture("wood", *args, surface="photo"), make_texture("wood", *args))
+    assert np.array_equal(
+        make_texture("paper", COLOURS["red"], 2, 64, surface="photo"), make_texture("paper", COLOURS["red"], 2, 64)
+    )
+
+
+def test_bare_paint_drops_only_the_metre_scale_wear():
+    wide = (COLOURS["beige"], 4, texture_size(3.0), 3.0)
+    bare, worn = make_texture("plaster", *wide, surface="bare"), make_texture("plaster", *wide)
+    assert not np.array_equal(bare, worn) and bare.astype(float).std() < worn.astype(float).std()
+    small = (COLOURS["beige"], 4, 64, DETAIL_M)
+    assert np.array_equal(make_texture("plaster", *small, surface="bare"), make_texture("plaster", *small))
+    with pytest.raises(ConfigError, match="unknown texture surface 'glossy'"):
+        make_texture("plaster", *small, surface="glossy")

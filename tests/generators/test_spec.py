@@ -71,6 +71,8 @@ def test_unknown_purpose_is_rejected(tmp_path: Path) -> None:
         ({"name": "a", "width": -640}, "width"),
         ({"name": "a", "room_side_min": -1.0}, "room_side_min"),
         ({"name": "a", "displaced_share": -0.1}, "displaced_share"),
+        ({"name": "a", "bare_wall_share": 1.5}, "bare_wall_share"),
+        ({"name": "a", "photo_share": -0.2}, "photo_share"),
         ({"name": "a", "room_side_min": 5.0, "room_side_max": 1e6}, "'room_side_max' must be at most 30"),
         ({"name": "a", "removed_share": 1.5}, "removed_share"),
         ({"name": "a", "displaced_share": 0.6, "added_share": 0.6}, "at most 1"),

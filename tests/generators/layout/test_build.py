@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from generators.layout import build_layout
+from generators.materials import COLOURS, photo_materials
 from generators.spec import SceneSpec
 from openreloc_bench.data.scene import STRUCTURAL_CATEGORIES
 
@@ -40,6 +41,28 @@ def test_deterministic_and_seed_dependent(layout_specs) -> None:
     assert [o.category for o in c.instances] != [o.category for o in a.instances] or not np.allclose(
         a.instances[-1].transform, c.instances[-1].transform
     )
+
+
+def _surfaces(layout, structural: bool) -> list[str]:
+    return [p.surface for i in layout.instances if i.structural == structural for p in i.parts]
+
+
+def test_surface_shares_change_only_the_surfaces(layout_specs) -> None:
+    """Bare walls and photographed parts follow their shares and move nothing else in the layout."""
+    spec = layout_specs["multi"]
+    plain = build_layout(SceneSpec(**{**spec.__dict__, "bare_wall_share": 0.0, "photo_share": 0.0}))
+    dressed = build_layout(SceneSpec(**{**spec.__dict__, "bare_wall_share": 1.0, "photo_share": 1.0}))
+    assert set(_surfaces(plain, True)) | set(_surfaces(plain, False)) == {"pattern"}
+    walls = [p for i in dressed.instances if i.category == "wall" for p in i.parts if p.rgb != COLOURS["light grey"]]
+    assert walls and all(p.surface == "bare" for p in walls)
+    photographed = [p for i in dressed.instances if not i.structural for p in i.parts if p.surface == "photo"]
+    assert photographed and all(p.material in photo_materials() for p in photographed)
+    assert [(o.description, o.transform.tobytes()) for o in plain.instances] == [
+        (o.description, o.transform.tobytes()) for o in dressed.instances
+    ]
+    eligible = [p for i in build_layout(spec).instances if not i.structural for p in i.parts]
+    eligible = [p for p in eligible if p.image is None and p.material in photo_materials()]
+    assert 0.25 < np.mean([p.surface == "photo" for p in eligible]) < 0.75  # the default share, 0.5
 
 
 def test_object_info_roundtrip(layout_and_spec) -> None:

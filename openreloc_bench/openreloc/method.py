@@ -47,6 +47,7 @@ from openreloc_bench.openreloc.association import (
     uniqueness,
     verification_evidence,
 )
+from openreloc_bench.openreloc.box_fit import extreme_points
 from openreloc_bench.openreloc.build import MappingConfig, build_object_map
 from openreloc_bench.openreloc.coarse_prior import CoarseConfig, place_landmarks
 from openreloc_bench.openreloc.consistency import (
@@ -73,7 +74,7 @@ from openreloc_bench.openreloc.hypotheses import (
 from openreloc_bench.openreloc.map import ObjectMap
 from openreloc_bench.openreloc.refine import RefineConfig
 from openreloc_bench.openreloc.timing import Stage, stage_timer, timed
-from openreloc_bench.openreloc.verify import VerifyConfig, extreme_points, verify_matches
+from openreloc_bench.openreloc.verify import VerifyConfig, verify_matches
 from openreloc_bench.vision.base import (
     ObjectMask,
     TextCache,

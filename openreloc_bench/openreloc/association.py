@@ -1,5 +1,8 @@
 """Landmark association: query objects -> map landmarks (paper section 3.2, Eqs. 3-5).
 
+The query's masks (:func:`segment_query`) become objects, are associated and reported by
+:class:`Associator`:
+
 1. Uniqueness ``gamma = Var_i cos(f_vis, f3d_i)`` of each query object against all landmarks: an
    object that is about equally similar to every landmark (a blank wall, a blurry patch) cannot be
    matched reliably. Kept: ``gamma >= max(min_uniqueness, uniqueness_ratio * median(gamma))`` over the
@@ -22,13 +25,17 @@ without the scene graph an ambiguous object keeps its visual top-1.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import networkx as nx
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from openreloc_bench.config import check_ranges
-from openreloc_bench.openreloc.verify import ObjectEvidence
+from openreloc_bench.methods import Failure
+from openreloc_bench.openreloc.descriptors import pad_box
+from openreloc_bench.openreloc.timing import Stage
+from openreloc_bench.vision.base import Describer, ImageTextEncoder, ObjectMask, Segmenter
 
 
 @dataclass
@@ -251,28 +258,107 @@ def oracle_matches(
     ]
 
 
-def verification_evidence(
-    objects: list[QueryObject],
-    matched: dict[int, Match],
-    scores: np.ndarray,
-    ids: list[int],
-    invalid: frozenset[int],
-    n_candidates: int,
-    lead: int | None = None,
-) -> list[ObjectEvidence]:
-    """Each query object's candidate landmark rows for the verification (``matched``: query index -> its
-    association match): the first ``lead`` of its association candidates (all with None), then its ranking
-    by ``scores`` (object x landmark row: the visual cosine, or the place prior's), without invalid
-    landmarks. Objects the association left out get none: it drops an object whose best landmark is a
-    filtered wall or floor (the object is one), and the verification must not give it a look-alike
-    instead (a wall re-matched to a fan or a window drags the pose)."""
-    row_of = {lid: r for r, lid in enumerate(ids)}
-    out = []
-    for q, o in enumerate(objects):
-        rows: list[int] = []
-        if q in matched:
-            first = [row_of[c] for c in matched[q].candidates[:lead]]
-            ranked = dict.fromkeys(first + np.argsort(-scores[q], kind="stable").tolist())
-            rows = [r for r in ranked if ids[r] not in invalid][:n_candidates]
-        out.append(ObjectEvidence(o.mask, rows))
-    return out
+def segment_query(
+    rgb: np.ndarray, instance: np.ndarray | None, segmenter: Segmenter, gt_segmenter: Segmenter, min_area: int
+) -> tuple[list[ObjectMask], np.ndarray]:
+    """The query's masks of at least ``min_area`` pixels, those to match (the dataset's on the oracle-mask
+    track, else the segmenter's), and the union of all of them (every segment occludes)."""
+    masks = gt_segmenter.segment(rgb, instance) if instance is not None else segmenter.segment(rgb)
+    occluders = np.zeros(rgb.shape[:2], bool)
+    for mk in masks:
+        occluders |= mk.mask
+    return [mk for mk in masks if int(mk.mask.sum()) >= min_area], occluders
+
+
+class Associator:
+    """The association ready for queries: the map's landmarks (``ids``, their ``descriptors`` as rows) and
+    scene graph (None: the no-scene-graph ablation), the map's encoder with the padding of its crops, the
+    describer (None: the no-language ablation) with the text encoder of its phrases, and the settings:
+    ``cfg``, and the fewest and most query objects matched."""
+
+    def __init__(
+        self,
+        ids: list[int],
+        descriptors: np.ndarray,
+        graph: nx.Graph | None,
+        encoder: ImageTextEncoder,
+        padding: float,
+        describer: Describer | None,
+        text_encoder: ImageTextEncoder,
+        cfg: AssociationConfig,
+        min_objects: int,
+        max_objects: int,
+    ):
+        self.ids, self.descriptors, self.graph = ids, descriptors, graph
+        self.encoder, self.padding = encoder, padding
+        self.describer, self.text_encoder = describer, text_encoder
+        self.cfg, self.min_objects, self.max_objects = cfg, min_objects, max_objects
+
+    def embed(self, rgb: np.ndarray, masks: list[ObjectMask]) -> np.ndarray:
+        """(masks, D) image embeddings of the masks' padded crops."""
+        h, w = rgb.shape[:2]
+        crops = [rgb[y0:y1, x0:x1] for x0, y0, x1, y1 in (pad_box(mk.box, self.padding, w, h) for mk in masks)]
+        return self.encoder.encode_images(crops)
+
+    def associate(
+        self,
+        rgb: np.ndarray,
+        masks: list[ObjectMask],
+        oracle_track: bool,
+        invalid: frozenset[int],
+        diag: dict[str, Any],
+        stage: Stage,
+    ) -> tuple[list[QueryObject], list[Match], np.ndarray | None] | Failure:
+        """The query objects (at most ``max_objects``), their matches to landmarks, and every mask's visual
+        similarity to every landmark (none for the oracle association, which matches by instance id, on
+        the oracle-mask track only). A Failure with fewer than ``min_objects`` unique objects."""
+        if self.cfg.oracle:
+            if not oracle_track:
+                return Failure("association.oracle (a diagnostic) needs the oracle-mask track", diag)
+            largest = sorted(range(len(masks)), key=lambda i: -int(masks[i].mask.sum()))[: self.max_objects]
+            zero = np.zeros(self.descriptors.shape[1], np.float32)
+            objects = [_query_object(masks[i], zero, 0.0) for i in sorted(largest)]
+            diag["unique"] = len(objects)
+            with stage("associate"):
+                return objects, oracle_matches(objects, self.ids, invalid), None
+        described = self._objects(rgb, masks, diag, stage)
+        if isinstance(described, Failure):
+            return described
+        objects, appearance = described
+        with stage("associate"):
+            # association sees every landmark; filtered ones (walls, floor) only veto the query
+            # objects that look most like them, instead of forcing those onto a valid look-alike
+            matches = associate(objects, self.ids, self.descriptors, self.graph, self.cfg, invalid)
+        return objects, matches, appearance
+
+    def _objects(
+        self, rgb: np.ndarray, masks: list[ObjectMask], diag: dict[str, Any], stage: Stage
+    ) -> tuple[list[QueryObject], np.ndarray] | Failure:
+        """Embed the query objects, keep the most unique ones and describe them (paper section 3.2); also
+        every mask's visual similarity to every landmark."""
+        with stage("encode"):
+            visual = self.embed(rgb, masks)
+            gammas = uniqueness(visual, self.descriptors)
+            keep = np.flatnonzero(unique_mask(gammas, self.cfg))
+            keep = keep[np.argsort(-gammas[keep], kind="stable")][: self.max_objects]
+        objects = [_query_object(masks[i], visual[i], float(gammas[i])) for i in sorted(keep.tolist())]
+        diag["unique"] = len(objects)
+        if len(objects) < self.min_objects:
+            need = self.min_objects
+            return Failure(f"{len(objects)} of {len(masks)} object(s) unique enough to match, need {need}", diag)
+        with stage("describe"):
+            if self.describer is not None:
+                phrases = self.describer.describe_many(rgb, [o.mask for o in objects])
+                for o, p, e in zip(objects, phrases, self.text_encoder.encode_texts(phrases)):
+                    o.phrase, o.text = p, e
+        return objects, visual @ self.descriptors.T
+
+
+def _query_object(mk: ObjectMask, visual: np.ndarray, gamma: float) -> QueryObject:
+    return QueryObject(
+        mask=mk.mask,
+        box=np.asarray(mk.box, dtype=np.float64),
+        visual=visual,
+        instance_id=mk.instance_id,
+        uniqueness=gamma,
+    )

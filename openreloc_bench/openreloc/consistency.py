@@ -18,6 +18,7 @@ because a few hundred cells per pose is all the comparison needs.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numba
@@ -26,6 +27,9 @@ from scipy.optimize import linear_sum_assignment
 from scipy.spatial import cKDTree
 
 from openreloc_bench.config import check_ranges
+
+Compare = Callable[[list[np.ndarray]], list[float]]
+"""Render-and-compare: how well each camera-to-world pose explains the query's masks (higher is better)."""
 
 
 @dataclass
@@ -86,6 +90,7 @@ class LabelRenderer:
             np.concatenate([np.full(len(p), cfg.splat * _spacing(p)) for p in keep]) if keep else np.zeros(0)
         )  # metres: half-width of each point's square
         self.cfg = cfg
+        self.landmarks = len(points)
         s = cfg.stride
         self.grid = (height // s, width // s)
 
@@ -110,6 +115,16 @@ class LabelRenderer:
             0.5 * self.cfg.stride * self.cfg.max_splat_cells,
         )
         return grid
+
+    def compare(self, masks: list[np.ndarray], appearance: np.ndarray | None, K: np.ndarray) -> Compare:
+        """The render-and-compare score of camera-to-world poses against all query ``masks``, the query's
+        label grid and pair weights computed once; without ``appearance`` (the oracle diagnostic) every
+        mask-landmark pair weighs 1."""
+        labels = query_labels(masks, self.cfg.stride)
+        weights = (
+            np.ones((len(masks), self.landmarks)) if appearance is None else candidate_weights(appearance, self.cfg)
+        )
+        return lambda poses: [consistency(self.render(T, K), labels, weights) for T in poses]
 
 
 @numba.njit(cache=True, nogil=True)

@@ -4,6 +4,8 @@ The paper refines one prior, the best reference frame's pose. Beyond it, each sw
 
 - the coarse stage proposes the ``coarse.top_frames`` best-ranked reference frames and a PnP pose
   (:func:`coarse_hypotheses`, from :mod:`.coarse_prior`), and the verification its pose;
+- the keypoints of the landmarks they chose give a pose (:func:`anchor_pose`), a start like the others
+  when too few keypoints agree with it to return it;
 - the verification's further modes, each with its own matches, are screened by render-and-compare
   before any is refined (:func:`screen_modes`: drawing a pose costs far less than refining it);
 - every hypothesis is refined in one batch over the union of their matches (:func:`refine_hypotheses`);
@@ -15,7 +17,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -23,15 +24,14 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from openreloc_bench import geometry
+from openreloc_bench.openreloc.anchors import AnchorConfig, AnchorIndex, AnchorPose
 from openreloc_bench.openreloc.association import Match, QueryObject
 from openreloc_bench.openreloc.coarse_prior import CoarseConfig, Ranking, pnp_prior, rank_reference_frames
+from openreloc_bench.openreloc.consistency import Compare
 from openreloc_bench.openreloc.icp_batch import TargetTables
 from openreloc_bench.openreloc.map import ObjectMap
 from openreloc_bench.openreloc.refine import RefineConfig, RefineResult, RefineTarget, refine_poses, target_tables
 from openreloc_bench.vision.preprocess import touches_border
-
-Compare = Callable[[list[np.ndarray]], list[float]]
-"""Render-and-compare: how well each camera-to-world pose explains the query's masks (higher is better)."""
 
 
 @dataclass
@@ -111,6 +111,27 @@ def uninformed_start(m: ObjectMap, matched: list[int]) -> np.ndarray:
     if np.linalg.norm(target - eye) < 1e-3:
         target = eye + np.array([1.0, 0.0, 0.0])
     return geometry.look_at(eye, target)
+
+
+def anchor_pose(
+    index: AnchorIndex,
+    rgb: np.ndarray,
+    K: np.ndarray,
+    hypotheses: list[Hypothesis],
+    frame_landmarks: dict[int, set[int]],
+    cfg: AnchorConfig,
+    seed: int,
+    diag: dict[str, Any],
+) -> AnchorPose | None:
+    """The keypoint pose (:mod:`.anchors`) from the landmarks the object stages chose: every hypothesis'
+    matched landmarks and those its reference frame sees (``frame_landmarks``: frame index -> landmarks)."""
+    landmarks = {mt.landmark for h in hypotheses for mt in h.matches}
+    for h in hypotheses:
+        if h.frame is not None:
+            landmarks |= frame_landmarks[h.frame]
+    diag["anchors"] = {}
+    views = [h.T_wc for h in hypotheses]
+    return index.localize(rgb, K, landmarks, views, cfg, seed, diag["anchors"])
 
 
 def screen_modes(modes: list[Hypothesis], room: int, compare: Compare | None, diag: dict[str, Any]) -> list[Hypothesis]:

@@ -37,32 +37,15 @@ from openreloc_bench.data.types import SceneSequence
 from openreloc_bench.errors import DataError
 from openreloc_bench.methods import Failure, MapPoints, PoseEstimate, QueryFrame
 from openreloc_bench.openreloc.anchors import AnchorConfig, AnchorIndex, AnchorPose, refined_or_prior
-from openreloc_bench.openreloc.association import (
-    AssociationConfig,
-    Match,
-    QueryObject,
-    associate,
-    oracle_matches,
-    unique_mask,
-    uniqueness,
-    verification_evidence,
-)
-from openreloc_bench.openreloc.box_fit import extreme_points
+from openreloc_bench.openreloc.association import AssociationConfig, Associator, Match, QueryObject, segment_query
 from openreloc_bench.openreloc.build import MappingConfig, build_object_map
-from openreloc_bench.openreloc.coarse_prior import CoarseConfig, place_landmarks
-from openreloc_bench.openreloc.consistency import (
-    ConsistencyConfig,
-    LabelRenderer,
-    candidate_weights,
-    consistency,
-    query_labels,
-)
-from openreloc_bench.openreloc.descriptors import pad_box
+from openreloc_bench.openreloc.coarse_prior import CoarseConfig
+from openreloc_bench.openreloc.consistency import ConsistencyConfig, LabelRenderer
 from openreloc_bench.openreloc.explain import PlacedObject, explain_pose
 from openreloc_bench.openreloc.hypotheses import (
-    Compare,
     Hypothesis,
     RefinedBatch,
+    anchor_pose,
     batch_diag,
     choose_hypothesis,
     coarse_hypotheses,
@@ -74,7 +57,8 @@ from openreloc_bench.openreloc.hypotheses import (
 from openreloc_bench.openreloc.map import ObjectMap
 from openreloc_bench.openreloc.refine import RefineConfig
 from openreloc_bench.openreloc.timing import Stage, stage_timer, timed
-from openreloc_bench.openreloc.verify import VerifyConfig, verify_matches
+from openreloc_bench.openreloc.verify import Verifier, VerifyConfig
+from openreloc_bench.tracks import ORACLE_MASK
 from openreloc_bench.vision.base import (
     ObjectMask,
     TextCache,
@@ -235,18 +219,22 @@ class OpenReLoc:
         self.segmenter = create_segmenter(cfg.segmenter, **cfg.segmenter_options)
         self.ids = sorted(m.landmarks)
         self.descriptors = m.descriptor_matrix(self.ids)
-        self.centers = np.array([m.landmarks[i].center for i in self.ids], dtype=np.float64).reshape(-1, 3)
-        self.extremes = np.array([extreme_points(m.landmarks[i].points) for i in self.ids]).reshape(
-            len(self.ids), -1, 3
+        padding = float(m.config.get("descriptors", {}).get("padding", 0.1))
+        graph = None if cfg.no_scene_graph else m.graph
+        self.associator = Associator(
+            self.ids,
+            self.descriptors,
+            graph,
+            self.encoder,
+            padding,
+            self.describer,
+            self.text_encoder,
+            cfg.association,
+            cfg.min_objects,
+            cfg.max_objects,
         )
-        # (frames, landmarks): which landmarks each reference frame sees (the verification's place prior)
-        self.frame_visibility = np.array(
-            [[i in f.boxes for i in self.ids] for f in m.reference_frames], dtype=bool
-        ).reshape(len(m.reference_frames), len(self.ids))
-        # (landmarks, landmarks): which pairs some reference frame sees together (the RANSAC's guided sampling)
-        seen = self.frame_visibility.astype(np.float32)
-        self.covisible = (seen.T @ seen) > 0
-        self.crop_padding = float(m.config.get("descriptors", {}).get("padding", 0.1))
+        oracle = cfg.association.oracle
+        self.verifier = Verifier(m, self.ids, self.descriptors, cfg.verification, oracle, cfg.no_coarse, cfg.seed)
         # the landmarks each reference frame sees, and the map's keypoints with the SIFT that made them
         self.frame_landmarks = {f.index: set(f.boxes) for f in m.reference_frames}
         self.anchor_index = None
@@ -273,8 +261,8 @@ class OpenReLoc:
         return result
 
     def _localize(self, query: QueryFrame, diag: dict[str, Any], timings: dict[str, float]) -> PoseEstimate | Failure:
-        """The pipeline: segment, associate, verify, retrieve (the coarse stage's hypotheses), refine,
-        compare (render-and-compare), then the choice among the refined hypotheses."""
+        """The pipeline: segment, associate, verify, retrieve (the coarse stage's hypotheses), anchors,
+        refine, compare (render-and-compare), then the choice among the refined hypotheses."""
         cfg, m = self.config, self.map
         assert m is not None
         stage = stage_timer(timings)
@@ -283,14 +271,14 @@ class OpenReLoc:
             return Failure(unfit, diag)
 
         with stage("segment"):
-            masks, occluders = self._segment(rgb, query.instance)
+            masks, occluders = segment_query(rgb, query.instance, self.segmenter, self.gt_segmenter, self.min_mask_area)
         diag["detected"] = len(masks)
         if len(masks) < cfg.min_objects:
             failure = Failure(f"{len(masks)} object(s) detected, need at least {cfg.min_objects}", diag)
             return self._few_objects(rgb, K, masks, failure, stage)
 
         invalid = frozenset() if cfg.no_filtering else frozenset(set(self.ids) - set(m.valid_ids()))
-        associated = self._associate(rgb, masks, query.instance is not None, invalid, diag, stage)
+        associated = self.associator.associate(rgb, masks, query.track == ORACLE_MASK, invalid, diag, stage)
         if isinstance(associated, Failure):
             return self._few_objects(rgb, K, masks, associated, stage)
         objects, matches, appearance = associated
@@ -299,7 +287,7 @@ class OpenReLoc:
         modes: list[Hypothesis] = []  # its further modes, each with its own matches
         if cfg.verification.enabled:
             with stage("verify"):
-                matches, verified, modes = self._verify(matches, objects, invalid, K, diag)
+                matches, verified, modes = self.verifier.verify(matches, objects, invalid, K, diag)
         diag["matches"] = [_match_diag(mt, objects, m) for mt in matches]
         if len(matches) < cfg.min_matches:
             failure = Failure(f"{len(matches)} landmark(s) associated, need at least {cfg.min_matches}", diag)
@@ -307,7 +295,7 @@ class OpenReLoc:
 
         with stage("retrieve"):
             hypotheses = coarse_hypotheses(matches, objects, m, K, cfg.coarse, cfg.retrieval, cfg.no_coarse, diag)
-            # (without the verified pose as a hypothesis, _verify searched no further modes)
+            # (without the verified pose as a hypothesis, the verification searched no further modes)
             if hypotheses and verified is not None and cfg.verification.hypothesis and not cfg.no_coarse:
                 hypotheses.append(Hypothesis("verified", verified, matches))
         if not hypotheses:
@@ -315,14 +303,16 @@ class OpenReLoc:
         anchored = None
         if self.anchor_index is not None:
             with stage("anchors"):
-                anchored = self._anchor_pose(rgb, K, hypotheses + modes, diag)
+                anchored = anchor_pose(
+                    self.anchor_index, rgb, K, hypotheses + modes, self.frame_landmarks, cfg.anchors, cfg.seed, diag
+                )
             if anchored is not None and anchored.inliers >= cfg.anchors.min_inliers:
                 diag["chosen"] = "anchors"
                 keypoints = Hypothesis("anchors", anchored.T_wc, matches)
                 return self._estimate(anchored.T_wc, keypoints, objects, diag, anchored.inliers)
             if anchored is not None and anchored.inliers >= cfg.anchors.seed_inliers:
                 hypotheses.append(Hypothesis("anchors", anchored.T_wc, matches))
-        compare = timed(stage, "compare", self._explainer(masks, appearance, K))
+        compare = timed(stage, "compare", self.renderer.compare([mk.mask for mk in masks], appearance, K))
         room = max(0, cfg.verification.refined_modes - 1)
         hypotheses += screen_modes(modes, room, compare if cfg.consistency.enabled else None, diag)
         if cfg.no_refine and len(hypotheses) == 1:  # the prior itself: nothing to refine or to choose from
@@ -411,49 +401,6 @@ class OpenReLoc:
             return "query intrinsics do not fit the image size (principal point outside the image)"
         return None
 
-    def _segment(self, rgb: np.ndarray, instance: np.ndarray | None) -> tuple[list[ObjectMask], np.ndarray]:
-        """The query's masks large enough to match (the dataset's on the oracle-mask track, else the
-        segmenter's), and the union of all of them (every segment occludes)."""
-        m = self.map
-        assert m is not None
-        masks = self.gt_segmenter.segment(rgb, instance) if instance is not None else self.segmenter.segment(rgb)
-        occluders = np.zeros((m.height, m.width), bool)
-        for mk in masks:
-            occluders |= mk.mask
-        return [mk for mk in masks if int(mk.mask.sum()) >= self.min_mask_area], occluders
-
-    def _associate(
-        self,
-        rgb: np.ndarray,
-        masks: list[ObjectMask],
-        has_instances: bool,
-        invalid: frozenset[int],
-        diag: dict[str, Any],
-        stage: Stage,
-    ) -> tuple[list[QueryObject], list[Match], np.ndarray | None] | Failure:
-        """The query objects, their matches to landmarks, and every mask's visual similarity to every
-        landmark (none for the oracle association, which matches by instance id)."""
-        cfg, m = self.config, self.map
-        assert m is not None
-        if cfg.association.oracle:
-            if not has_instances:
-                return Failure("association.oracle (a diagnostic) needs the oracle-mask track", diag)
-            largest = sorted(range(len(masks)), key=lambda i: -int(masks[i].mask.sum()))[: cfg.max_objects]
-            zero = np.zeros(self.descriptors.shape[1], np.float32)
-            objects = [_query_object(masks[i], zero, 0.0) for i in sorted(largest)]
-            diag["unique"] = len(objects)
-            with stage("associate"):
-                return objects, oracle_matches(objects, self.ids, invalid), None
-        described = self._objects(rgb, masks, diag, stage)
-        if isinstance(described, Failure):
-            return described
-        objects, appearance = described
-        with stage("associate"):
-            graph = None if cfg.no_scene_graph else m.graph
-            # association sees every landmark; filtered ones (walls, floor) only veto the query
-            # objects that look most like them, instead of forcing those onto a valid look-alike
-            return objects, associate(objects, self.ids, self.descriptors, graph, cfg.association, invalid), appearance
-
     def _few_objects(
         self, rgb: np.ndarray, K: np.ndarray, masks: list[ObjectMask], failure: Failure, stage: Stage
     ) -> PoseEstimate | Failure:
@@ -463,10 +410,10 @@ class OpenReLoc:
         if self.anchor_index is None or not masks or not self.ids:
             return failure
         with stage("encode"):
-            sims = self._embed(rgb, masks) @ self.descriptors.T
+            sims = self.associator.embed(rgb, masks) @ self.descriptors.T
         k = min(self.config.association.top_k, len(self.ids))
         rows = np.unique(np.argsort(-sims, axis=1, kind="stable")[:, :k])
-        rows = np.flatnonzero(self.covisible[rows].any(axis=0) | np.isin(np.arange(len(self.ids)), rows))
+        rows = np.flatnonzero(self.verifier.covisible[rows].any(axis=0) | np.isin(np.arange(len(self.ids)), rows))
         diag = failure.diagnostics
         diag["anchors"] = {}
         with stage("anchors"):
@@ -479,152 +426,6 @@ class OpenReLoc:
         diag["prior_T_wc"] = np.round(anchored.T_wc, 6).tolist()
         return PoseEstimate(anchored.T_wc, diag, anchored.inliers)
 
-    def _embed(self, rgb: np.ndarray, masks: list[ObjectMask]) -> np.ndarray:
-        """(masks, D) image embeddings of the masks' padded crops."""
-        m = self.map
-        assert m is not None
-        crops = [
-            rgb[y0:y1, x0:x1]
-            for x0, y0, x1, y1 in (pad_box(mk.box, self.crop_padding, m.width, m.height) for mk in masks)
-        ]
-        return self.encoder.encode_images(crops)
-
-    def _anchor_pose(
-        self, rgb: np.ndarray, K: np.ndarray, hypotheses: list[Hypothesis], diag: dict[str, Any]
-    ) -> AnchorPose | None:
-        """The keypoint pose from the landmarks the object stages chose: every hypothesis' matched
-        landmarks and those its reference frame sees."""
-        assert self.anchor_index is not None
-        landmarks = {mt.landmark for h in hypotheses for mt in h.matches}
-        for h in hypotheses:
-            if h.frame is not None:
-                landmarks |= self.frame_landmarks[h.frame]
-        diag["anchors"] = {}
-        views = [h.T_wc for h in hypotheses]
-        return self.anchor_index.localize(
-            rgb, K, landmarks, views, self.config.anchors, self.config.seed, diag["anchors"]
-        )
-
-    def _explainer(self, masks: list[ObjectMask], appearance: np.ndarray | None, K: np.ndarray) -> Compare:
-        """The render-and-compare score (:mod:`.consistency`) of camera-to-world poses against all query
-        masks, the query's label grid and pair weights computed once; without appearance (the oracle
-        diagnostic) every mask-landmark pair weighs 1."""
-        labels = query_labels([mk.mask for mk in masks], self.config.consistency.stride)
-        weights = (
-            np.ones((len(masks), len(self.ids)))
-            if appearance is None
-            else candidate_weights(appearance, self.config.consistency)
-        )
-        return lambda poses: [consistency(self.renderer.render(T, K), labels, weights) for T in poses]
-
-    def _objects(
-        self, rgb: np.ndarray, masks: list[ObjectMask], diag: dict[str, Any], stage: Stage
-    ) -> tuple[list[QueryObject], np.ndarray] | Failure:
-        """Embed the query objects, keep the unique ones and describe them (paper section 3.2); also
-        every mask's visual similarity to every landmark."""
-        cfg, m = self.config, self.map
-        assert m is not None
-        with stage("encode"):
-            visual = self._embed(rgb, masks)
-            gammas = uniqueness(visual, self.descriptors)
-            keep = np.flatnonzero(unique_mask(gammas, cfg.association))
-            keep = keep[np.argsort(-gammas[keep], kind="stable")][: cfg.max_objects]
-        objects = [_query_object(masks[i], visual[i], float(gammas[i])) for i in sorted(keep.tolist())]
-        diag["unique"] = len(objects)
-        if len(objects) < cfg.min_objects:
-            return Failure(
-                f"{len(objects)} of {len(masks)} object(s) unique enough to match, need {cfg.min_objects}", diag
-            )
-        with stage("describe"):
-            if self.describer is not None:
-                phrases = self.describer.describe_many(rgb, [o.mask for o in objects])
-                for o, p, e in zip(objects, phrases, self.text_encoder.encode_texts(phrases)):
-                    o.phrase, o.text = p, e
-        return objects, visual @ self.descriptors.T
-
-    def _verify(
-        self,
-        matches: list[Match],
-        objects: list[QueryObject],
-        invalid: frozenset[int],
-        K: np.ndarray,
-        diag: dict[str, Any],
-    ) -> tuple[list[Match], np.ndarray | None, list[Hypothesis]]:
-        """Object-level RANSAC over the matched objects' candidates (:func:`verification_evidence`): the
-        matches one pose explains, and that pose; the association unchanged when none does. Third: the
-        further modes, each with its own matches, with ``verification.modes`` > 1."""
-        cfg = self.config
-        matched = {mt.query: mt for mt in matches}
-        vcfg = cfg.verification
-        sims = np.stack([o.visual for o in objects]) @ self.descriptors.T
-        # the oracle's matches are certain: the RANSAC only finds the pose they support, and no look-alikes
-        n_candidates = 1 if cfg.association.oracle else vcfg.candidates
-        place = vcfg.place_frames > 0 and not cfg.association.oracle
-        evidence = verification_evidence(
-            objects,
-            matched,
-            self._place_ranking(objects, sims, invalid) if place else sims,
-            self.ids,
-            invalid,
-            n_candidates,
-            lead=int(vcfg.place_keeps_choice) if place else None,
-        )
-        if not vcfg.hypothesis or cfg.no_coarse:  # further modes come only with the verified pose: skip their search
-            vcfg = dataclasses.replace(vcfg, modes=1)
-        result = verify_matches(evidence, self.centers, self.extremes, K, vcfg, seed=cfg.seed, covisible=self.covisible)
-        if result is None:
-            diag["verification"] = {"inliers": 0, "kept": "association"}
-            return matches, None, []
-
-        def as_matches(assignment: dict[int, int]) -> list[Match]:
-            """The association's match where the RANSAC agrees with it, a 'verified' one where not."""
-            out = []
-            for q, row in sorted(assignment.items()):
-                lid, o = self.ids[row], objects[q]
-                out.append(
-                    matched[q]
-                    if matched[q].landmark == lid
-                    else Match(
-                        query=q,
-                        landmark=lid,
-                        visual_sim=float(sims[q, row]),
-                        text_sim=None if o.text is None else float(self.descriptors[row] @ o.text),
-                        how="verified",
-                        candidates=[self.ids[r] for r in evidence[q].candidates],
-                    )
-                )
-            return out
-
-        out = as_matches(result.assignment)
-        changed = sum(mt.how == "verified" for mt in out)
-        diag["verification"] = {
-            "inliers": result.inliers,
-            "hypotheses": result.hypotheses,
-            "changed": changed,
-            "dropped": len(matches) - (len(out) - changed),
-        }
-        if result.alternatives:
-            diag["verification"]["modes"] = 1 + len(result.alternatives)
-        return (
-            out,
-            result.T_wc,
-            [
-                Hypothesis(f"verified:{j}", a.T_wc, as_matches(a.assignment))
-                for j, a in enumerate(result.alternatives, start=2)
-            ],
-        )
-
-    def _place_ranking(self, objects: list[QueryObject], sims: np.ndarray, invalid: frozenset[int]) -> np.ndarray:
-        """(objects, landmarks) candidate scores of the verification with its place prior
-        (``verification.place_frames``): visual plus weighted text cosine, plus ``place_bonus`` where one of
-        the reference frames looking most like the query sees the landmark."""
-        vcfg = self.config.verification
-        scores = sims.astype(np.float64)
-        if all(o.text is not None for o in objects):
-            scores = scores + vcfg.text_weight * (np.stack([o.text for o in objects]) @ self.descriptors.T)
-        scores[:, [r for r, i in enumerate(self.ids) if i in invalid]] = -np.inf
-        return scores + vcfg.place_bonus * place_landmarks(scores, self.frame_visibility, vcfg.place_frames)
-
 
 @functools.cache
 def _blas_controller() -> ThreadpoolController:
@@ -632,16 +433,6 @@ def _blas_controller() -> ThreadpoolController:
     small (hundreds of rows), but OpenBLAS's idle workers busy-wait after each call and take the cores
     from torch (the text encoder's forward pass then runs at less than half its speed)."""
     return ThreadpoolController()
-
-
-def _query_object(mk: ObjectMask, visual: np.ndarray, gamma: float) -> QueryObject:
-    return QueryObject(
-        mask=mk.mask,
-        box=np.asarray(mk.box, dtype=np.float64),
-        visual=visual,
-        instance_id=mk.instance_id,
-        uniqueness=gamma,
-    )
 
 
 def _match_diag(mt: Match, objects: list[QueryObject], m: ObjectMap) -> dict[str, Any]:

@@ -9,7 +9,7 @@ from contextlib import AbstractContextManager, contextmanager
 
 import numpy as np
 
-from openreloc_bench.openreloc.hypotheses import Compare
+from openreloc_bench.openreloc.consistency import Compare
 
 Stage = Callable[[str], AbstractContextManager[None]]
 """``with stage(name):`` adds the block's time to the query's timing of stage ``name``."""

@@ -33,7 +33,9 @@ object brings several candidate landmarks, of which at most one may be used.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
+from typing import Any
 
 import cv2
 import numpy as np
@@ -41,8 +43,11 @@ from scipy.spatial.transform import Rotation
 
 from openreloc_bench import geometry
 from openreloc_bench.config import check_ranges
-from openreloc_bench.openreloc.box_fit import fit_boxes_many
-from openreloc_bench.openreloc.coarse_prior import solve_pnp
+from openreloc_bench.openreloc.association import Match, QueryObject
+from openreloc_bench.openreloc.box_fit import extreme_points, fit_boxes_many
+from openreloc_bench.openreloc.coarse_prior import place_landmarks, solve_pnp
+from openreloc_bench.openreloc.hypotheses import Hypothesis
+from openreloc_bench.openreloc.map import ObjectMap
 from openreloc_bench.vision.preprocess import touches_border
 
 
@@ -186,6 +191,145 @@ class ObjectEvidence:
     """bool (H, W)."""
     candidates: list[int]
     """Landmark rows, most likely first."""
+
+
+class Verifier:
+    """The verification ready for queries: a map's landmarks as rows (``ids``, their ``descriptors``) with
+    their centres and extreme points, which landmarks each reference frame sees (the place prior) and
+    which pairs some reference frame sees together (the guided sampling); and the settings: ``cfg``,
+    ``oracle`` (the association is the true one, whose matches are certain: the RANSAC only finds the pose
+    they support, and no look-alikes), ``no_coarse`` (the ablation without the coarse stage's hypotheses)
+    and the RANSAC's ``seed``."""
+
+    def __init__(
+        self,
+        m: ObjectMap,
+        ids: list[int],
+        descriptors: np.ndarray,
+        cfg: VerifyConfig,
+        oracle: bool,
+        no_coarse: bool,
+        seed: int,
+    ):
+        self.ids, self.descriptors = ids, descriptors
+        self.cfg, self.oracle, self.no_coarse, self.seed = cfg, oracle, no_coarse, seed
+        self.centers = np.array([m.landmarks[i].center for i in ids], dtype=np.float64).reshape(-1, 3)
+        self.extremes = np.array([extreme_points(m.landmarks[i].points) for i in ids]).reshape(len(ids), -1, 3)
+        # (frames, landmarks): which landmarks each reference frame sees (the place prior)
+        self.frame_visibility = np.array([[i in f.boxes for i in ids] for f in m.reference_frames], dtype=bool).reshape(
+            len(m.reference_frames), len(ids)
+        )
+        # (landmarks, landmarks): which pairs some reference frame sees together (the guided sampling)
+        seen = self.frame_visibility.astype(np.float32)
+        self.covisible = (seen.T @ seen) > 0
+
+    def verify(
+        self,
+        matches: list[Match],
+        objects: list[QueryObject],
+        invalid: frozenset[int],
+        K: np.ndarray,
+        diag: dict[str, Any],
+    ) -> tuple[list[Match], np.ndarray | None, list[Hypothesis]]:
+        """Object-level RANSAC over the matched objects' candidates (:func:`verification_evidence`): the
+        matches one pose explains, and that pose; the association unchanged when none does. Third: the
+        further modes, each with its own matches, with ``modes`` > 1."""
+        cfg = self.cfg
+        matched = {mt.query: mt for mt in matches}
+        sims = np.stack([o.visual for o in objects]) @ self.descriptors.T
+        n_candidates = 1 if self.oracle else cfg.candidates
+        place = cfg.place_frames > 0 and not self.oracle
+        evidence = verification_evidence(
+            objects,
+            matched,
+            self.place_scores(objects, sims, invalid) if place else sims,
+            self.ids,
+            invalid,
+            n_candidates,
+            lead=int(cfg.place_keeps_choice) if place else None,
+        )
+        if not cfg.hypothesis or self.no_coarse:  # further modes come only with the verified pose: skip their search
+            cfg = dataclasses.replace(cfg, modes=1)
+        result = verify_matches(evidence, self.centers, self.extremes, K, cfg, seed=self.seed, covisible=self.covisible)
+        if result is None:
+            diag["verification"] = {"inliers": 0, "kept": "association"}
+            return matches, None, []
+
+        def as_matches(assignment: dict[int, int]) -> list[Match]:
+            """The association's match where the RANSAC agrees with it, a 'verified' one where not."""
+            out = []
+            for q, row in sorted(assignment.items()):
+                lid, o = self.ids[row], objects[q]
+                out.append(
+                    matched[q]
+                    if matched[q].landmark == lid
+                    else Match(
+                        query=q,
+                        landmark=lid,
+                        visual_sim=float(sims[q, row]),
+                        text_sim=None if o.text is None else float(self.descriptors[row] @ o.text),
+                        how="verified",
+                        candidates=[self.ids[r] for r in evidence[q].candidates],
+                    )
+                )
+            return out
+
+        out = as_matches(result.assignment)
+        changed = sum(mt.how == "verified" for mt in out)
+        diag["verification"] = {
+            "inliers": result.inliers,
+            "hypotheses": result.hypotheses,
+            "changed": changed,
+            "dropped": len(matches) - (len(out) - changed),
+        }
+        if result.alternatives:
+            diag["verification"]["modes"] = 1 + len(result.alternatives)
+        return (
+            out,
+            result.T_wc,
+            [
+                Hypothesis(f"verified:{j}", a.T_wc, as_matches(a.assignment))
+                for j, a in enumerate(result.alternatives, start=2)
+            ],
+        )
+
+    def place_scores(self, objects: list[QueryObject], sims: np.ndarray, invalid: frozenset[int]) -> np.ndarray:
+        """(objects, landmarks) candidate scores with the place prior (``place_frames``): visual plus
+        weighted text cosine, plus ``place_bonus`` where one of the reference frames looking most like the
+        query sees the landmark."""
+        cfg = self.cfg
+        scores = sims.astype(np.float64)
+        if all(o.text is not None for o in objects):
+            scores = scores + cfg.text_weight * (np.stack([o.text for o in objects]) @ self.descriptors.T)
+        scores[:, [r for r, i in enumerate(self.ids) if i in invalid]] = -np.inf
+        return scores + cfg.place_bonus * place_landmarks(scores, self.frame_visibility, cfg.place_frames)
+
+
+def verification_evidence(
+    objects: list[QueryObject],
+    matched: dict[int, Match],
+    scores: np.ndarray,
+    ids: list[int],
+    invalid: frozenset[int],
+    n_candidates: int,
+    lead: int | None = None,
+) -> list[ObjectEvidence]:
+    """Each query object's candidate landmark rows for the verification (``matched``: query index -> its
+    association match): the first ``lead`` of its association candidates (all with None), then its ranking
+    by ``scores`` (object x landmark row: the visual cosine, or the place prior's), without invalid
+    landmarks. Objects the association left out get none: it drops an object whose best landmark is a
+    filtered wall or floor (the object is one), and the verification must not give it a look-alike
+    instead (a wall re-matched to a fan or a window drags the pose)."""
+    row_of = {lid: r for r, lid in enumerate(ids)}
+    out = []
+    for q, o in enumerate(objects):
+        rows: list[int] = []
+        if q in matched:
+            first = [row_of[c] for c in matched[q].candidates[:lead]]
+            ranked = dict.fromkeys(first + np.argsort(-scores[q], kind="stable").tolist())
+            rows = [r for r in ranked if ids[r] not in invalid][:n_candidates]
+        out.append(ObjectEvidence(o.mask, rows))
+    return out
 
 
 def verify_matches(

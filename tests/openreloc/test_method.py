@@ -13,9 +13,11 @@ from openreloc_bench import geometry
 from openreloc_bench.data.scene import Scene
 from openreloc_bench.errors import ConfigError, DataError
 from openreloc_bench.methods import Failure, PoseEstimate, QueryFrame, create_method
+from openreloc_bench.openreloc import association as association_module
 from openreloc_bench.openreloc import hypotheses as hypotheses_module
 from openreloc_bench.openreloc import method as method_module
-from openreloc_bench.openreloc.association import Match, QueryObject, verification_evidence
+from openreloc_bench.openreloc import verify as verify_module
+from openreloc_bench.openreloc.consistency import LabelRenderer
 from openreloc_bench.openreloc.map import ObjectMap
 from openreloc_bench.vision.base import register_encoder
 from tests.openreloc.boxworld import ROOM, MeanColorEncoder, camera_poses, render, write_boxworld
@@ -120,18 +122,18 @@ def test_the_place_prior_ranks_the_verification_candidates(map_dir: Path, monkey
     """With ``place_frames``, each kept object's candidates follow the place prior's scores (after the
     association's first candidate with ``place_keeps_choice``), and only valid landmarks compete."""
     seen: dict[str, object] = {}
-    associate, verify = method_module.associate, method_module.verify_matches
-    monkeypatch.setattr(method_module, "associate", lambda *a, **k: seen.setdefault("matches", associate(*a, **k)))
+    associate, verify = association_module.associate, verify_module.verify_matches
+    monkeypatch.setattr(association_module, "associate", lambda *a, **k: seen.setdefault("matches", associate(*a, **k)))
     monkeypatch.setattr(
-        method_module,
+        verify_module,
         "verify_matches",
         lambda evidence, *a, **k: verify(seen.setdefault("evidence", evidence), *a, **k),
     )
     m = localizer(
         map_dir, refinement={"max_iterations": 5}, verification={"place_frames": 2, "place_keeps_choice": keeps_choice}
     )
-    ranking = m._place_ranking
-    monkeypatch.setattr(m, "_place_ranking", lambda *a: seen.setdefault("scores", ranking(*a)))
+    ranking = m.verifier.place_scores
+    monkeypatch.setattr(m.verifier, "place_scores", lambda *a: seen.setdefault("scores", ranking(*a)))
     m.localize(held_out_query()[0])
     scores, evidence = seen["scores"], seen["evidence"]
     choice = {mt.query: m.ids.index(mt.candidates[0]) for mt in seen["matches"]}
@@ -146,11 +148,11 @@ def test_the_place_prior_ranks_the_verification_candidates(map_dir: Path, monkey
 def test_the_verification_draws_with_the_maps_covisibility(map_dir: Path, monkeypatch) -> None:
     """The RANSAC's guided sampling gets which landmark pairs some reference frame sees together."""
     seen: dict[str, object] = {}
-    verify = method_module.verify_matches
-    monkeypatch.setattr(method_module, "verify_matches", lambda *a, **k: verify(*a, **seen.setdefault("kwargs", k)))
+    verify = verify_module.verify_matches
+    monkeypatch.setattr(verify_module, "verify_matches", lambda *a, **k: verify(*a, **seen.setdefault("kwargs", k)))
     m = localizer(map_dir, refinement={"max_iterations": 5})
     m.localize(held_out_query()[0])
-    covisible, frames = seen["kwargs"]["covisible"], m.frame_visibility
+    covisible, frames = seen["kwargs"]["covisible"], m.verifier.frame_visibility
     assert covisible.shape == (len(m.ids), len(m.ids)) and np.array_equal(covisible, covisible.T)
     a, b = np.nonzero(covisible)
     assert len(a) < covisible.size and all((frames[:, i] & frames[:, j]).any() for i, j in zip(a, b))
@@ -340,9 +342,7 @@ def test_only_the_further_modes_that_render_closest_are_refined(
 ) -> None:
     q, _ = held_out_query()
     # a drawing that prefers later poses: the screen must keep the last mode, not the RANSAC's next best
-    monkeypatch.setattr(
-        method_module.OpenReLoc, "_explainer", lambda *_: lambda poses: [float(i) for i in range(len(poses))]
-    )
+    monkeypatch.setattr(LabelRenderer, "compare", lambda *_: lambda poses: [float(i) for i in range(len(poses))])
     res = localizer(
         map_dir,
         verification={"modes": 3, "refined_modes": 2, "fitted_triples": 0},  # three modes, as above
@@ -442,20 +442,6 @@ def test_map_without_weights_fingerprint_is_refused(tmp_path: Path) -> None:
     create_method("openreloc", no_language=True).load_map(tmp_path / "map")  # the current map loads
     with pytest.raises(DataError, match="fingerprint.*rebuild the map"):
         create_method("openreloc", no_language=True).load_map(tmp_path / "old")
-
-
-def test_verification_evidence_leaves_out_objects_the_association_dropped() -> None:
-    """Object 1 was dropped by the association (its best landmark, 30, is a filtered wall: it is one);
-    the verification gives it no candidates rather than its best valid look-alike."""
-    mask = np.ones((4, 4), bool)
-    objects = [QueryObject(mask=mask, box=np.array([0, 0, 4, 4.0]), visual=np.zeros(2, np.float32)) for _ in range(2)]
-    ids = [10, 20, 30]
-    sims = np.array([[0.2, 0.9, 0.5], [0.4, 0.1, 0.95]])
-    matched = {0: Match(query=0, landmark=10, visual_sim=0.2, text_sim=None, how="graph", candidates=[10])}
-    evidence = verification_evidence(objects, matched, sims, ids, frozenset({30}), n_candidates=5)
-    assert [e.candidates for e in evidence] == [[0, 1], []]  # rows: its match first, then by similarity
-    ranked = verification_evidence(objects, matched, sims, ids, frozenset({30}), n_candidates=5, lead=0)
-    assert [e.candidates for e in ranked] == [[1, 0], []]  # by the scores alone (the place prior's ranking)
 
 
 def test_a_query_runs_with_single_threaded_blas_and_restores_it(map_dir: Path, monkeypatch) -> None:

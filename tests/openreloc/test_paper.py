@@ -11,8 +11,9 @@ import pytest
 from openreloc_bench import geometry
 from openreloc_bench.data.scene import Scene
 from openreloc_bench.methods import PoseEstimate, QueryFrame, create_method
+from openreloc_bench.openreloc import consistency as consistency_module
 from openreloc_bench.openreloc import hypotheses as hypotheses_module
-from openreloc_bench.openreloc import method as method_module
+from openreloc_bench.openreloc import verify as verify_module
 from openreloc_bench.openreloc.filtering import reference_frequency
 from openreloc_bench.openreloc.map import ObjectMap
 from openreloc_bench.openreloc.method import OpenReLocConfig
@@ -101,10 +102,14 @@ def test_localizes_from_the_single_diou_prior_without_any_addition(paper_map: Pa
     def forbidden(*_a, **_k):
         raise AssertionError("a stage beyond the paper ran")
 
-    for stage in ("verify_matches", "place_landmarks", "consistency"):
-        monkeypatch.setattr(method_module, stage, forbidden)
-    for stage in ("pnp_prior", "orbit_starts"):
-        monkeypatch.setattr(hypotheses_module, stage, forbidden)
+    for module, stage in (
+        (verify_module, "verify_matches"),
+        (verify_module, "place_landmarks"),
+        (consistency_module, "consistency"),
+        (hypotheses_module, "pnp_prior"),
+        (hypotheses_module, "orbit_starts"),
+    ):
+        monkeypatch.setattr(module, stage, forbidden)
     m = create_method("openreloc-paper", no_language=True)
     m.load_map(paper_map)
     q, T_gt = held_out_query(12)

@@ -7,12 +7,14 @@ import numpy as np
 import pytest
 
 from openreloc_bench import geometry
+from openreloc_bench.openreloc.association import Match, QueryObject
 from openreloc_bench.openreloc.box_fit import extreme_points
 from openreloc_bench.openreloc.verify import (
     ObjectEvidence,
     VerifyConfig,
     _CandidateTable,
     draw_triples,
+    verification_evidence,
     verify_matches,
 )
 from tests.openreloc.boxworld import Box, render
@@ -205,3 +207,17 @@ def test_covisibility_guides_the_draws_to_triples_seen_together(world: dict) -> 
     assert unguided == _right_share(world, 1.0, None)  # weight 1: the co-visibility is not even looked at
     assert 0 < unguided < 0.01  # 0.13 ** 3 expected: the third of five is drawn with chance 0.25 / 1.94
     assert _right_share(world, 0.05, covisible) > 10 * unguided
+
+
+def test_verification_evidence_leaves_out_objects_the_association_dropped() -> None:
+    """Object 1 was dropped by the association (its best landmark, 30, is a filtered wall: it is one);
+    the verification gives it no candidates rather than its best valid look-alike."""
+    mask = np.ones((4, 4), bool)
+    objects = [QueryObject(mask=mask, box=np.array([0, 0, 4, 4.0]), visual=np.zeros(2, np.float32)) for _ in range(2)]
+    ids = [10, 20, 30]
+    sims = np.array([[0.2, 0.9, 0.5], [0.4, 0.1, 0.95]])
+    matched = {0: Match(query=0, landmark=10, visual_sim=0.2, text_sim=None, how="graph", candidates=[10])}
+    evidence = verification_evidence(objects, matched, sims, ids, frozenset({30}), n_candidates=5)
+    assert [e.candidates for e in evidence] == [[0, 1], []]  # rows: its match first, then by similarity
+    ranked = verification_evidence(objects, matched, sims, ids, frozenset({30}), n_candidates=5, lead=0)
+    assert [e.candidates for e in ranked] == [[1, 0], []]  # by the scores alone (the place prior's ranking)

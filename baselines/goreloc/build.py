@@ -7,8 +7,10 @@ the project's reconstruction (:mod:`openreloc_bench.reconstruction`):
 1. TSDF fusion of the frames into a scene point cloud, and a depth-tested projection of the cloud into
    every frame, during which each frame's masks (dataset instance masks, or the segmenter's) are
    turned into filtered closed-vocabulary detections (:func:`.detect.detect`, mapping thresholds);
-2. 3D objects: per-point voting of the instance masks, or view-consensus clustering of the
-   segmenter's masks; a detection belongs to the object most of its mask's points were lifted to;
+2. 3D objects, by the reconstruction's instance step (:mod:`openreloc_bench.reconstruction.instances`
+   with its :class:`InstanceConfig`): per-point voting of the instance masks, or view-consensus
+   clustering of the segmenter's masks; a detection belongs to the object most of its mask's points
+   were lifted to;
 3. per object: the ellipsoid fitted to its points, its label counts over its detections;
 4. the object graph: objects whose detections were linked in a frame's graph (each detection to its
    ``keyframe_neighbours`` nearest box centres) plus each object's ``nearest_objects`` nearest objects
@@ -36,7 +38,7 @@ from openreloc_bench.data.types import SceneSequence
 from openreloc_bench.errors import ConfigError, DataError
 from openreloc_bench.reconstruction.fusion import FusionConfig, fuse_tsdf
 from openreloc_bench.reconstruction.gravity import estimate_up
-from openreloc_bench.reconstruction.lifting import InstanceConfig, instance_sets, lift_by_clustering, lift_by_voting
+from openreloc_bench.reconstruction.instances import InstanceConfig, label_instances
 from openreloc_bench.reconstruction.observation import FrameObservation, ObservationConfig, observe
 from openreloc_bench.vision.base import ObjectMask, Segmenter, create_segmenter
 
@@ -141,12 +143,10 @@ def build_goreloc_map(
         raise ConfigError("goreloc mapping from a segmenter needs the segmenter and the zero-shot labeller")
     detecting = _DetectingSegmenter(segmenter, labeller, cfg.detection)
     rec = fuse_tsdf(seq, cfg.fusion, progress)
+    up = estimate_up(seq.poses[rec.usable], rec.points, cfg.fusion.voxel_size)
     obs = observe(seq, rec.points, rec.usable, cfg.observation, detecting, progress)
-    if source == "masks":
-        point_ids = lift_by_voting(len(rec.points), obs, cfg.instances.voting)
-    else:
-        point_ids = lift_by_clustering(rec.points, obs, cfg.instances.clustering)
-    sets = instance_sets(point_ids, cfg.instances.min_points)
+    segmented, cameras, voxel = source == "segmenter", seq.poses[:, :3, 3], cfg.fusion.voxel_size
+    point_ids, sets = label_instances(rec.points, obs, cfg.instances, segmented, up, cameras, voxel)
 
     counts: dict[int, np.ndarray] = {}
     linked: set[tuple[int, int]] = set()
@@ -164,7 +164,6 @@ def build_goreloc_map(
                     linked.add((min(owners[a], owners[b]), max(owners[a], owners[b])))
 
     ids = np.array(sorted(i for i, c in counts.items() if c.sum() >= cfg.min_detections), np.int64)
-    up = estimate_up(seq.poses[rec.usable], rec.points, cfg.fusion.voxel_size)
     fits = [fit_ellipsoid(rec.points[sets[i]], cfg.ellipsoid_trim, cfg.ellipsoid_scale, up) for i in ids]
     centres = np.array([f[0] for f in fits]).reshape(-1, 3)
     index = {int(i): k for k, i in enumerate(ids)}

@@ -35,16 +35,10 @@ from openreloc_bench.openreloc.instance_eval import box_point_labels, boxed_obje
 from openreloc_bench.openreloc.map import Landmark, ObjectMap
 from openreloc_bench.openreloc.reference_frames import ReferenceFrameConfig, landmark_sightings, select_reference_frames
 from openreloc_bench.openreloc.scene_graph import GraphConfig, build_scene_graph
-from openreloc_bench.reconstruction.affinity_grouping import lift_by_affinity
 from openreloc_bench.reconstruction.fusion import FusionConfig, Reconstruction, fuse_tsdf
-from openreloc_bench.reconstruction.gravity import estimate_up, levelling
-from openreloc_bench.reconstruction.instance_repair import repair_instances
-from openreloc_bench.reconstruction.lifting import (
-    GroupedInstanceConfig,
-    instance_sets,
-    lift_by_clustering,
-    lift_by_voting,
-)
+from openreloc_bench.reconstruction.gravity import estimate_up
+from openreloc_bench.reconstruction.instances import GroupedInstanceConfig, label_instances
+from openreloc_bench.reconstruction.lifting import instance_sets, lift_by_voting
 from openreloc_bench.reconstruction.observation import FrameObservation, ObservationConfig, observe
 from openreloc_bench.vision.base import ImageTextEncoder, Segmenter
 
@@ -212,10 +206,9 @@ def lift_instances(
     timer: _Timer | None = None,
     boundaries: bool = False,
 ) -> Instances:
-    """Fusion, observation and 3D instances: the dataset masks voted (no segmenter), or the segmenter's
-    masks grouped (affinity grouping or view-consensus clustering) and repaired (:mod:`instance_repair`).
-    The observations keep the segmenter's boundaries and colours when the repair merges, or with
-    ``boundaries``."""
+    """Fusion, observation and 3D instances (:func:`~openreloc_bench.reconstruction.instances.label_instances`):
+    the dataset masks voted (no segmenter), or the segmenter's masks grouped and repaired. The observations
+    keep the segmenter's boundaries and colours when the repair merges, or with ``boundaries``."""
     timer = timer or _Timer()
     with timer("fusion"):
         rec = fuse_tsdf(mapping_seq, config.fusion, progress)
@@ -224,29 +217,10 @@ def lift_instances(
         keep = boundaries or config.instances.repair.merge
         obs = observe(mapping_seq, rec.points, rec.usable, config.observation, segmenter, progress, keep)
     with timer("instances"):
-        if segmenter is None:
-            labels = lift_by_voting(len(rec.points), obs, config.instances.voting)
-        else:
-            # grouping splits objects off horizontal surfaces: it sees the cloud levelled, up along +z
-            labels = repair_instances(
-                rec.points,
-                group_masks(rec.points @ levelling(up).T, obs, config),
-                obs,
-                mapping_seq.poses[:, :3, 3],
-                config.instances.repair,
-                config.instances.min_mask_points,
-            )
-        sets = instance_sets(labels, config.instances.min_points)
+        cameras, voxel = mapping_seq.poses[:, :3, 3], config.fusion.voxel_size
+        labels, sets = label_instances(rec.points, obs, config.instances, segmenter is not None, up, cameras, voxel)
         labels = np.where(np.isin(labels, list(sets)), labels, 0)
     return Instances(rec, obs, labels, sets, up)
-
-
-def group_masks(points: np.ndarray, obs: list, config: MappingConfig) -> np.ndarray:
-    """(N,) instance label per scene point from the segmenter's masks, grouped as configured."""
-    cfg = config.instances
-    if cfg.grouping == "affinity":
-        return lift_by_affinity(points, obs, cfg.affinity, config.fusion.voxel_size)
-    return lift_by_clustering(points, obs, cfg.clustering)
 
 
 def _downsample(points: np.ndarray, voxel: float, cap: int, rng: np.random.Generator) -> np.ndarray:

@@ -10,17 +10,14 @@ Segmentation"), from what each frame sees of it (:mod:`.observation`):
   ("consensus rate") of their observers contain both in one mask; merging repeats with a
   decreasing requirement on the number of observers; finally each cluster keeps the points its
   masks detect in most of its frames (drops what dilated masks took from the background).
-  All consensus counts are sparse-matrix products (masks x points incidence), not Python loops;
-- affinity grouping of a segmenter's masks (:mod:`.affinity_grouping`) and the repair of its
-  instances (:mod:`.instance_repair`), configured here too (:class:`GroupedInstanceConfig`; a method
-  that lifts by voting and clustering only takes :class:`InstanceConfig`, and offers no setting it
-  would not read).
+  All consensus counts are sparse-matrix products (masks x points incidence), not Python loops.
+
+:mod:`.instances` chooses among them (and affinity grouping with repair) as a method configures it.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from typing import Literal
+from dataclasses import dataclass
 
 import numba
 import numpy as np
@@ -29,9 +26,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from openreloc_bench.config import check_ranges
-from openreloc_bench.reconstruction.affinity_grouping import AffinityConfig
 from openreloc_bench.reconstruction.incidence import incidence, sets_matrix, view_evidence
-from openreloc_bench.reconstruction.instance_repair import RepairConfig
 from openreloc_bench.reconstruction.observation import FrameObservation
 
 
@@ -98,46 +93,6 @@ class ClusteringConfig:
         )
         if any(not 0 <= p <= 100 for p in self.observer_percentiles):
             raise ValueError(f"'observer_percentiles' must be percentiles in [0, 100], got {self.observer_percentiles}")
-
-
-@dataclass
-class InstanceConfig:
-    """Turning labelled scene points into landmarks: what every lifting reads."""
-
-    min_points: int = 20
-    """Instances with fewer scene points are dropped."""
-    voting: VotingConfig = field(default_factory=VotingConfig)
-    clustering: ClusteringConfig = field(default_factory=ClusteringConfig)
-
-    def __post_init__(self) -> None:
-        check_ranges(self, non_negative=("min_points",))
-
-
-@dataclass
-class GroupedInstanceConfig(InstanceConfig):
-    """:class:`InstanceConfig` with the choice of how a segmenter's masks are grouped, the repair of the
-    grouped instances, and the ground truth they are scored against (OpenReLoc's mapping)."""
-
-    gt_box_margin: float = 0.03
-    """Ground truth for the instance precision/recall: points within this distance (m) of an object's
-    box in ``objects.json`` (see :func:`box_point_labels`); ~1.5 fusion voxels absorbs surface noise."""
-    grouping: Literal["affinity", "clustering"] = "affinity"
-    """How a segmenter's masks become 3D instances: 'affinity' (neighbouring points held together by
-    the views' masks, :mod:`affinity_grouping`; needs the dense views of a walk-through) or
-    'clustering' (view consensus of whole masks, :func:`lift_by_clustering`; best with
-    ``repair.fill``)."""
-    affinity: AffinityConfig = field(default_factory=AffinityConfig)
-    repair: RepairConfig = field(default_factory=RepairConfig)
-    """Fill and merge of the grouped instances (segmenter masks only)."""
-
-    def __post_init__(self) -> None:
-        super().__post_init__()
-        check_ranges(self, non_negative=("gt_box_margin",))
-
-    @property
-    def min_mask_points(self) -> int:
-        """The smallest 2D mask the chosen grouping trusts (the repair reads the same masks)."""
-        return (self.affinity if self.grouping == "affinity" else self.clustering).min_mask_points
 
 
 def lift_by_voting(n_points: int, obs: list[FrameObservation], cfg: VotingConfig) -> np.ndarray:

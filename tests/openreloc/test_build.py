@@ -12,7 +12,7 @@ from openreloc_bench.errors import ConfigError
 from openreloc_bench.openreloc.build import MappingConfig, build_object_map
 from openreloc_bench.openreloc.map import ObjectMap
 from openreloc_bench.reconstruction.fusion import FusionConfig
-from openreloc_bench.reconstruction.lifting import GroupedInstanceConfig
+from openreloc_bench.reconstruction.instances import GroupedInstanceConfig
 from tests.openreloc.boxworld import MeanColorEncoder, NoisyMaskSegmenter, boxworld_sequence
 
 CFG = MappingConfig(fusion=FusionConfig(voxel_size=0.05))

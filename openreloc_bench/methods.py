@@ -44,16 +44,20 @@ class QueryFrame:
     """3x3 intrinsics."""
     instance: np.ndarray | None = None
     """Instance ids (oracle-mask track only: a perfect detector); None in the predicted track."""
+    track: RecordedTrack | None = None
+    """The track the query was made for (:meth:`from_frame`), which a method reads rather than guess it
+    from ``instance``. A query made without one (by hand: plugins, tests) is taken for the oracle-mask
+    track when it carries instances, else for the predicted track, when it is made (never None after)."""
+
+    def __post_init__(self) -> None:
+        if self.track is None:
+            self.track = ORACLE_MASK if self.instance is not None else PREDICTED
 
     @classmethod
     def from_frame(cls, frame: Frame, track: RecordedTrack) -> QueryFrame:
-        """What a method sees of a dataset frame on ``track``: the image and intrinsics, and the dataset's
-        instance masks on the oracle-mask track only."""
-        return cls(frame.name, frame.color, frame.K, frame.instance if track == ORACLE_MASK else None)
-
-    @property
-    def track(self) -> Track:
-        return ORACLE_MASK if self.instance is not None else PREDICTED
+        """What a method sees of a dataset frame on ``track``: the image and intrinsics, the dataset's
+        instance masks on the oracle-mask track only, and the track."""
+        return cls(frame.name, frame.color, frame.K, frame.instance if track == ORACLE_MASK else None, track)
 
 
 @dataclass

@@ -114,12 +114,20 @@ def test_the_recorded_track_follows_the_method_declaration(track: str) -> None:
     assert recorded_track(object(), track) == track  # says nothing: reads masks
 
 
-def test_a_query_frame_carries_the_dataset_masks_on_the_oracle_mask_track_only() -> None:
+def test_a_query_frame_carries_the_dataset_masks_on_the_oracle_mask_track_only_and_its_track() -> None:
     frame = Frame("query/000001", np.eye(4), np.eye(3), np.zeros((4, 4, 3), np.uint8), instance=np.ones((4, 4), int))
     assert QueryFrame.from_frame(frame, ORACLE_MASK).track == ORACLE_MASK
+    assert QueryFrame.from_frame(frame, ORACLE_MASK).instance is frame.instance
     for track in (PREDICTED, MASK_FREE):
         assert QueryFrame.from_frame(frame, track).instance is None
-        assert QueryFrame.from_frame(frame, track).track == PREDICTED
+        assert QueryFrame.from_frame(frame, track).track == track
+
+
+def test_a_query_frame_made_without_a_track_is_taken_for_the_one_its_masks_say() -> None:
+    img = np.zeros((4, 4, 3), np.uint8)
+    assert QueryFrame("q/1", img, np.eye(3)).track == PREDICTED
+    assert QueryFrame("q/1", img, np.eye(3), np.ones((4, 4), int)).track == ORACLE_MASK
+    assert QueryFrame("q/1", img, np.eye(3), None, MASK_FREE).track == MASK_FREE
 
 
 class Answering:

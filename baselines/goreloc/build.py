@@ -40,6 +40,7 @@ from openreloc_bench.reconstruction.fusion import FusionConfig, fuse_tsdf
 from openreloc_bench.reconstruction.gravity import estimate_up
 from openreloc_bench.reconstruction.instances import InstanceConfig, label_instances
 from openreloc_bench.reconstruction.observation import FrameObservation, ObservationConfig, observe
+from openreloc_bench.tracks import ORACLE_MASK
 from openreloc_bench.vision.base import ObjectMask, Segmenter, create_segmenter
 
 
@@ -50,7 +51,7 @@ class MappingConfig:
     instances_from: Literal["auto", "masks", "segmenter"] = "auto"
     """'masks': the dataset's instance masks, labelled through the COCO table (oracle-mask track);
     'segmenter': the configured segmenter's masks, labelled zero-shot (predicted track); 'auto': the
-    masks when the mapping frames carry them, else the segmenter."""
+    masks on the oracle-mask track (the mapping sequence's), else the segmenter."""
     detection: DetectionFilterConfig = field(default_factory=lambda: DetectionFilterConfig(min_score=0.2))
     """The detection filter while mapping (GOReloc's mapping thresholds: score 0.2)."""
     keyframe_neighbours: int = 4
@@ -86,12 +87,11 @@ class MappingConfig:
 
 
 def instance_source(seq: SceneSequence, cfg: MappingConfig) -> str:
-    """'masks' or 'segmenter', resolving 'auto' by whether the frames carry instance masks."""
-    has_masks = seq.has_instances and seq.load_instances
-    if cfg.instances_from == "masks" and not has_masks:
+    """'masks' or 'segmenter', resolving 'auto' by the sequence's track (the masks on the oracle-mask track)."""
+    if cfg.instances_from == "masks" and not seq.has_instances:
         raise ConfigError("goreloc mapping: instances_from is 'masks' but the mapping frames have no instance masks")
     if cfg.instances_from == "auto":
-        return "masks" if has_masks else "segmenter"
+        return "masks" if seq.track == ORACLE_MASK else "segmenter"
     return cfg.instances_from
 
 

@@ -237,7 +237,7 @@ class Scene:
         self._check_against_info(seq)
         if track == ORACLE_MASK:
             self._check_masks(seq)
-        seq.load_instances = track in (None, ORACLE_MASK)
+        seq.opened_for = track
         return seq
 
     def _check_against_info(self, seq: SceneSequence) -> None:

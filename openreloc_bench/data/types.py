@@ -18,6 +18,7 @@ import numpy as np
 from openreloc_bench import geometry
 from openreloc_bench.data import io
 from openreloc_bench.errors import DataError
+from openreloc_bench.tracks import ORACLE_MASK, PREDICTED, RecordedTrack
 
 
 @dataclass
@@ -53,8 +54,8 @@ class FrameRecord:
 class SceneSequence:
     """An ordered split of posed frames (e.g. a scene's ``mapping`` or ``query`` split): what a method's
     ``build_map`` receives. Iterating or indexing it gives :class:`Frame` objects, decoded on access;
-    ``poses``, ``names`` and ``K`` decode no image. With ``load_instances`` off (the predicted track, and
-    methods that read no masks) every ``Frame.instance`` is None."""
+    ``poses``, ``names`` and ``K`` decode no image. Opened for the predicted track, or for a method that
+    reads no masks (``load_instances`` off), every ``Frame.instance`` is None."""
 
     split: str
     K: np.ndarray
@@ -63,9 +64,11 @@ class SceneSequence:
     records: list[FrameRecord]
     depth_scale: float = io.DEPTH_SCALE_MM
     """Depth PNG units per metre (1000 for ScanNet/this project, 5000 for TUM)."""
-    load_instances: bool = True
     skipped: dict[str, str] = field(default_factory=dict)
     """Frames the reader dropped (e.g. invalid ScanNet poses), id -> reason."""
+    opened_for: RecordedTrack | None = None
+    """The track :meth:`~openreloc_bench.data.scene.Scene.sequence` opened it for; None: opened without
+    one, giving every instance image there is (see :attr:`track`)."""
 
     def __len__(self) -> int:
         return len(self.records)
@@ -107,6 +110,20 @@ class SceneSequence:
     @property
     def has_depth(self) -> bool:
         return bool(self.records) and all(r.depth_path is not None for r in self.records)
+
+    @property
+    def track(self) -> RecordedTrack:
+        """The track a method is given the sequence for, which its ``build_map`` reads rather than guess it:
+        the one it was opened for; opened without one (by hand: plugins, tests), the oracle-mask track when
+        every frame gives its instance image, else the predicted track."""
+        if self.opened_for is not None:
+            return self.opened_for
+        return ORACLE_MASK if self.has_instances else PREDICTED
+
+    @property
+    def load_instances(self) -> bool:
+        """Whether frames give their instance images: opened for the oracle-mask track, or for none."""
+        return self.opened_for in (None, ORACLE_MASK)
 
     @property
     def has_instances(self) -> bool:

@@ -68,7 +68,7 @@ class InLoopRelocalizer:
         """Ask the method about one view. A method that raises or answers nonsense fails this view (with
         the reason), as in the harness: a bug in a method must not end a training run."""
         self.ensure_loaded()
-        query = QueryFrame(name, rgb, K, instance if self.track == ORACLE_MASK else None)
+        query = QueryFrame(name, rgb, K, instance if self.track == ORACLE_MASK else None, self.track)
         answer = localize_safely(self.method, query)
         matches = answer.diagnostics.get("matches")
         return Estimate(answer.T_wc, len(matches) if isinstance(matches, list) else 0, answer.reason)

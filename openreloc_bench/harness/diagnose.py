@@ -157,7 +157,7 @@ def localization_quality(
         f = seq[i]
         if isinstance(watched, _WatchedSegmenter):
             watched.truth = f.instance if labelled else None
-        res = method.localize(QueryFrame(f.name, f.color, f.K, f.instance if query_masks == "dataset" else None))
+        res = method.localize(QueryFrame.from_frame(f, ORACLE_MASK if query_masks == "dataset" else PREDICTED))
         diag = res.diagnostics if isinstance(res, PoseEstimate | Failure) else {}
         for mt in diag.get("matches", []):
             if mt.get("query_instance") is not None:

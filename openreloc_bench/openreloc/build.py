@@ -51,7 +51,7 @@ class MappingConfig:
 
     instances_from: Literal["auto", "masks", "segmenter"] = "auto"
     """'masks': vote the dataset instance masks (oracle track); 'segmenter': cluster the segmenter's
-    masks; 'auto': the dataset masks when the mapping frames carry them (oracle-mask track), else the
+    masks; 'auto': the dataset masks on the oracle-mask track (the mapping sequence's), else the
     segmenter's (predicted track)."""
     landmark_voxel: float = 0.04
     """Landmark points kept in the map are voxel-downsampled to this spacing (m)."""

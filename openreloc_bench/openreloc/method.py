@@ -181,7 +181,7 @@ class OpenReLoc:
         cfg = self.config
         encoder = create_encoder(cfg.encoder, **cfg.encoder_options)
         source = cfg.mapping.instances_from
-        own_masks = source == "segmenter" or (source == "auto" and not mapping.has_instances)
+        own_masks = source == "segmenter" or (source == "auto" and mapping.track != ORACLE_MASK)
         segmenter = create_segmenter(cfg.segmenter, **cfg.segmenter_options) if own_masks else None
         build_object_map(mapping, cfg.mapping, encoder, segmenter).save(map_dir)
 

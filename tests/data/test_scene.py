@@ -216,3 +216,18 @@ def test_difficulty_table_is_read_and_checked(tiny_scene: Path) -> None:
     (tiny_scene / "difficulty.csv").write_text("split,frame\nquery,000000\n")
     with pytest.raises(DataError, match="missing column"):
         Scene(tiny_scene).difficulty()
+
+
+def test_a_sequence_carries_the_track_it_was_opened_for(tiny_scene: Path):
+    scene = Scene(tiny_scene)
+    oracle = scene.sequence("query", "oracle-mask")
+    assert oracle.track == "oracle-mask" and oracle.has_instances and oracle[0].instance is not None
+    for track in ("predicted", "mask-free"):
+        seq = scene.sequence("query", track)
+        assert seq.track == track and not seq.has_instances and seq[0].instance is None
+        assert seq.subset([0]).track == track
+    # opened without a track: the one its instance images say (every frame has one here)
+    assert scene.sequence("query").track == "oracle-mask"
+    unmasked = scene.sequence("query")
+    unmasked.records[0].instance_path = None
+    assert unmasked.track == "predicted" and unmasked[1].instance is not None

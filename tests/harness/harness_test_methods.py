@@ -95,8 +95,10 @@ class NoisyOracle:
         c = self.config
         if c.delay_s:
             time.sleep(c.delay_s)
-        if c.expect_track and query.track != c.expect_track:
-            raise RuntimeError(f"got a {query.track} query")
+        if c.expect_track and (
+            query.track != c.expect_track or (query.instance is not None) != (query.track == "oracle-mask")
+        ):
+            raise RuntimeError(f"got a {query.track} query" + (" with masks" if query.instance is not None else ""))
         if query.name == c.raise_on:
             raise RuntimeError("boom")
         if query.name == c.hang_on:

@@ -112,7 +112,7 @@ def test_maps_of_mask_free_methods_serve_both_tracks(data_dir: Path, tmp_path: P
 def test_a_method_declaring_no_masks_is_given_none_and_recorded_mask_free(
     data_dir: Path, tmp_path: Path, track: str
 ) -> None:
-    run = MethodRun("free", "test-oracle-mask-free", {"expect_track": "predicted"})  # raises if given masks
+    run = MethodRun("free", "test-oracle-mask-free", {"expect_track": "mask-free"})  # raises if given masks
     assert runner.evaluate(cfg(data_dir, tmp_path, [run], track=track)).errors == []
     marker = io.read_json(tmp_path / "runs" / "free" / "mask-free" / "sA" / "query.done.json")
     assert (marker["track"], marker["uses_masks"]) == ("mask-free", False)

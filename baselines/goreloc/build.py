@@ -45,7 +45,7 @@ from openreloc_bench.vision.base import ObjectMask, Segmenter, create_segmenter
 
 
 @dataclass
-class MappingConfig:
+class GORelocMappingConfig:
     """How the map is built (everything recorded in the map)."""
 
     instances_from: Literal["auto", "masks", "segmenter"] = "auto"
@@ -86,7 +86,7 @@ class MappingConfig:
             raise ValueError(f"'ellipsoid_trim' must be below 0.5, got {self.ellipsoid_trim!r}")
 
 
-def instance_source(seq: SceneSequence, cfg: MappingConfig) -> str:
+def instance_source(seq: SceneSequence, cfg: GORelocMappingConfig) -> str:
     """'masks' or 'segmenter', resolving 'auto' by the sequence's track (the masks on the oracle-mask track)."""
     if cfg.instances_from == "masks" and not seq.has_instances:
         raise ConfigError("goreloc mapping: instances_from is 'masks' but the mapping frames have no instance masks")
@@ -119,7 +119,7 @@ class _DetectingSegmenter(Segmenter):
 
 def build_goreloc_map(
     seq: SceneSequence,
-    cfg: MappingConfig,
+    cfg: GORelocMappingConfig,
     segmenter: Segmenter | None = None,
     labeller: Labeller | None = None,
     encoder_info: dict[str, Any] | None = None,

@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from baselines.goreloc.build import MappingConfig, build_goreloc_map, instance_source
+from baselines.goreloc.build import GORelocMappingConfig, build_goreloc_map, instance_source
 from baselines.goreloc.detect import DetectionFilterConfig, TableLabeller, ZeroShotLabeller, detect
 from baselines.goreloc.ellipsoid import dual_quadrics, ellipses_from_boxes
 from baselines.goreloc.graph import (
@@ -76,7 +76,7 @@ class GORelocConfig:
     """Candidates need a descriptor cosine above this."""
     ransac: RansacConfig = field(default_factory=RansacConfig)
     """The pose search."""
-    mapping: MappingConfig = field(default_factory=MappingConfig)
+    mapping: GORelocMappingConfig = field(default_factory=GORelocMappingConfig)
     """Map building."""
     seed: int = 0
     """Seed of the RANSAC's draws (every query starts from it: results do not depend on query order)."""

@@ -3,7 +3,7 @@ import json
 import numpy as np
 import pytest
 
-from baselines.goreloc.build import MappingConfig, build_goreloc_map
+from baselines.goreloc.build import GORelocMappingConfig, build_goreloc_map
 from baselines.goreloc.map import GORelocMap
 from openreloc_bench.data.scene import Scene
 from openreloc_bench.errors import DataError
@@ -13,7 +13,7 @@ from tests.baselines.goreloc.ellipsoid_world import BLOBS, write_ellipsoid_world
 @pytest.fixture(scope="module")
 def world_map(tmp_path_factory):
     root = write_ellipsoid_world(tmp_path_factory.mktemp("goreloc") / "world")
-    return build_goreloc_map(Scene(root).sequence("mapping"), MappingConfig(), progress=False)
+    return build_goreloc_map(Scene(root).sequence("mapping"), GORelocMappingConfig(), progress=False)
 
 
 def test_map_holds_one_fitted_ellipsoid_per_visible_coco_object(world_map):

@@ -380,9 +380,9 @@ def render(cfg: CampaignConfig, ledger: Ledger, say: Callable[[str], None]) -> N
     """Every suite's board from its results folder, the campaign page and, where Chromium is installed,
     a screenshot of each board."""
     from openreloc_bench.harness import browser
-    from openreloc_bench.harness.leaderboard import campaign_page, write_leaderboard
+    from openreloc_bench.harness.leaderboard import PAIRED_FILE, campaign_page, write_leaderboard
 
-    summaries = []
+    summaries, comparisons = [], []
     for suite in cfg.plan.suites:
         results = cfg.work / suite
         if tabulate(results) is None:
@@ -391,6 +391,7 @@ def render(cfg: CampaignConfig, ledger: Ledger, say: Callable[[str], None]) -> N
         card = Path(cfg.plan.card_dir) / f"{suite}.md"
         write_leaderboard([results], board, cfg.data, card if card.is_file() else None)
         summaries.append(pd.read_csv(board / "leaderboard.csv").assign(suite=suite))
+        comparisons.append(pd.read_csv(board / PAIRED_FILE).assign(suite=suite))
         if cfg.screenshot and browser.available():
             browser.screenshot(board / "index.html", board / "screenshot.png")
         elif cfg.screenshot:
@@ -406,7 +407,7 @@ def render(cfg: CampaignConfig, ledger: Ledger, say: Callable[[str], None]) -> N
     if not rows.empty:
         for readme in cfg.verdict_into:
             block = campaign_page.verdict_block(
-                rows, cfg.plan, cfg.out.resolve(), readme, ledger.data["commit"], len(pending)
+                rows, pd.concat(comparisons), cfg.plan, cfg.out.resolve(), readme, ledger.data["commit"], len(pending)
             )
             campaign_page.write_verdict(readme, block)
             say(f"verdict written into {readme}")

@@ -140,7 +140,8 @@ def test_leaderboard_heads_with_the_predicted_track(results: tuple[Path, Path], 
     assert verdict.startswith("**Verdict (query split, recall [%]):** Predicted track: ")
     assert (
         "outside not recorded" in verdict
-        and ". Oracle-mask track: test-oracle leads at 50 cm (100.0 [100.0, 100.0] vs " in verdict
+        and ". Oracle-mask track: test-oracle leads at 50 cm (100.0 vs nearest-frame 20.0, +80.0 [" in verdict
+        and "on the same queries" in verdict  # weighed on the queries both answered
     )
     head, oracle = md.index("## Predicted track (headline)"), md.index("## Oracle-mask track (upper bound)")
     assert head < md.index("| outside | predicted |") < oracle < md.index("| test-oracle | oracle-mask |")

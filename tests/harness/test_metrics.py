@@ -14,6 +14,7 @@ from openreloc_bench.harness.metrics import (
     coverage_auc,
     cumulative_curve,
     hits,
+    paired_difference,
     recall_intervals,
     summarize,
 )
@@ -87,6 +88,22 @@ def test_intervals_contain_the_recall_shrink_with_queries_and_widen_across_scene
     pooled, by_scene = recall_intervals(uneven)[j], recall_intervals(uneven, scenes)[j]
     assert by_scene[1] - by_scene[0] > 2 * (pooled[1] - pooled[0])
     assert np.isnan(recall_intervals(np.zeros((0, len(RECALLS)), bool))).all()
+
+
+def test_a_paired_difference_sees_a_lead_that_overlapping_intervals_hide() -> None:
+    """Scenes from 30 to 90 % right, and one method right on 10 points more of each scene's queries: the
+    two recalls' intervals overlap, the difference's lies above zero."""
+    rng = np.random.default_rng(1)
+    scenes = np.repeat(np.arange(6), 50)
+    u = rng.random(300)
+    base = np.repeat([0.3, 0.4, 0.5, 0.7, 0.8, 0.9], 50)
+    worse, better = (u < base).astype(float), (u < base + 0.1).astype(float)
+    a, b = recall_intervals(better[:, None], scenes)[0], recall_intervals(worse[:, None], scenes)[0]
+    assert a[0] < b[1]  # the intervals overlap
+    diff, lo, hi = paired_difference(better, worse, scenes)
+    assert diff == pytest.approx(100 * (better - worse).mean()) and 0 < lo < diff < hi
+    assert paired_difference(worse, better, scenes)[2] < 0
+    assert np.isnan(paired_difference(np.zeros(0), np.zeros(0), np.zeros(0))).all()
 
 
 def test_empty_and_mismatched() -> None:

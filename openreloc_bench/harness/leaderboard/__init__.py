@@ -34,12 +34,17 @@ from openreloc_bench.harness.leaderboard.rows import (
     difficulty_table,
     load_maps,
     load_queries,
+    paired_differences,
     recorded_tracks,
     robustness_drops,
 )
 from openreloc_bench.harness.leaderboard.verdict import ABLATIONS
 from openreloc_bench.harness.tables import build_tables, pool_seeds
 from openreloc_bench.tracks import MASK_FREE
+
+PAIRED_FILE = "paired.csv"
+"""A board's comparisons of every two methods on the same queries of the headline split, which its verdict
+weighs (and the campaign's README verdict reads)."""
 
 
 def write_leaderboard(results: list[Path], out: Path, data: Path | None = None, card: Path | None = None) -> list[Path]:
@@ -94,12 +99,17 @@ def write_leaderboard(results: list[Path], out: Path, data: Path | None = None, 
     abl = [p.name for p in ablations]
     pictures = [str(p.relative_to(out)) for p in plots]
     why = [p for p in pictures if Path(p).name in WHY_CAPTIONS]
-    io.atomic_write_text(out / "leaderboard.md", to_markdown(b, scenes, versions, rel, card_link, drops, abl, why))
-    io.atomic_write_text(out / "index.html", to_html(b, pictures, versions, rel, card_link, drops, abl, why))
+    paired = paired_differences(q)
+    io.atomic_write_text(out / PAIRED_FILE, paired.to_csv(index=False))
+    io.atomic_write_text(
+        out / "leaderboard.md", to_markdown(b, scenes, versions, rel, card_link, drops, abl, why, paired)
+    )
+    io.atomic_write_text(out / "index.html", to_html(b, pictures, versions, rel, card_link, drops, abl, why, paired))
     return [
         out / "leaderboard.md",
         out / "leaderboard.csv",
         out / "difficulty.csv",
+        out / PAIRED_FILE,
         out / "index.html",
         *ablations,
         *plots,

@@ -100,10 +100,13 @@ def campaign_page(
     return "\n".join(lines) + "\n"
 
 
-def verdict_block(suite_rows: pd.DataFrame, plan: PagePlan, boards: Path, into: Path, commit: str, pending: int) -> str:
-    """The verdict table for the README ``into``: each suite's verdict line, linked to its board (under
-    ``boards``), and the summary table; the code version and, for an unfinished campaign, how many steps
-    are left."""
+def verdict_block(
+    suite_rows: pd.DataFrame, paired: pd.DataFrame, plan: PagePlan, boards: Path, into: Path, commit: str, pending: int
+) -> str:
+    """The verdict table for the README ``into``: each suite's verdict line (weighed on the same queries
+    with the boards' ``paired`` comparisons, a ``suite`` column telling them apart), linked to its board
+    (under ``boards``), and the summary table; the code version and, for an unfinished campaign, how many
+    steps are left."""
     state = f"; {pending} step(s) of the plan still to run" if pending else ""
     split = plan.splits[0]
     lines = [VERDICT_BEGIN, f"**{verdict_lead(split)}**, code version `{commit[:12]}`{state}:", ""]
@@ -111,7 +114,8 @@ def verdict_block(suite_rows: pd.DataFrame, plan: PagePlan, boards: Path, into: 
         rows = suite_rows[suite_rows["suite"] == suite]
         if not rows.empty:
             link = os.path.relpath(boards / suite / "leaderboard.md", into.resolve().parent)
-            lines.append(f"- **[{suite}]({link})**: {verdict(rows, split)}")
+            same = paired[paired["suite"] == suite] if "suite" in paired else None
+            lines.append(f"- **[{suite}]({link})**: {verdict(rows, split, same)}")
     lines += ["", "R@50cm / R@25cm [%]:", ""]
     lines += summary_table(suite_rows, plan)
     return "\n".join([*lines, VERDICT_END])

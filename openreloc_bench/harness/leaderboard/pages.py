@@ -57,7 +57,8 @@ def _ablation_links(ablations: Sequence[str]) -> list[tuple[str, str]]:
 
 
 WHY_CAPTIONS = {
-    "headline_recall.png": "The verdict's numbers: methods whose whiskers overlap are level, not ahead.",
+    "headline_recall.png": "The verdict's numbers with their 95% intervals. The verdict weighs a lead on the "
+    "same queries (paired.csv), which is sharper than comparing these whiskers: scenes differ more than methods.",
     "cumulative_translation.png": "Where the methods part: the share of queries within each translation "
     "error. A curve that rises late is coarse; one that levels off low fails often.",
     "recall_vs_lighting.png": "What the light takes: recall as the query splits darken.",
@@ -82,8 +83,9 @@ def to_markdown(
     drops: pd.DataFrame | None = None,
     ablations: Sequence[str] = (),
     why: Sequence[str] = (),
+    paired: pd.DataFrame | None = None,
 ) -> str:
-    """The board: its verdict (:func:`verdict`), the plots that explain it (``why``, :data:`WHY_CAPTIONS`),
+    """The board: its verdict (:func:`verdict`, weighed on the same queries with ``paired``), the plots that explain it (``why``, :data:`WHY_CAPTIONS`),
     links to the data's ``card`` and to the ``ablations``
     tables (paths relative to the board, where there are some), one table per track (the predicted
     track's first), the robustness table (``drops``: :func:`~.rows.robustness_drops`), per-scene tables,
@@ -93,7 +95,7 @@ def to_markdown(
     lines = [
         f"# {_title(versions)}",
         "",
-        f"**{verdict_lead()}:** {verdict(b)}",
+        f"**{verdict_lead()}:** {verdict(b, paired=paired)}",
         "",
         "Recall = share of all queries (failures count), with its 95% interval (bootstrap over scenes, then queries); "
         "MTE/MRE = mean error of the queries within the threshold.",
@@ -206,8 +208,9 @@ def to_html(
     drops: pd.DataFrame | None = None,
     ablations: Sequence[str] = (),
     why: Sequence[str] = (),
+    paired: pd.DataFrame | None = None,
 ) -> str:
-    """The sortable page: the board's verdict, the plots that explain it (``why``), links to the data's
+    """The sortable page: the board's verdict (weighed on the same queries with ``paired``), the plots that explain it (``why``), links to the data's
     ``card`` and the ``ablations`` tables, its tables (the headline split's rows first, the others folded),
     the robustness table (``drops``), the other ``plots`` side by side and the recall-vs-difficulty plots
     full width."""
@@ -251,7 +254,7 @@ img.wide {{ max-width: 98%; float: none; }} .clear {{ clear: both; }}
 .why img {{ max-width: 100%; float: none; margin: 0; }} .why p {{ margin: 0.2em 0; font-size: 14px; }}
 </style></head><body>
 <h1>{html.escape(_title(versions))}</h1>
-<p class="verdict"><strong>{html.escape(verdict_lead())}:</strong> {html.escape(verdict(b))}</p>
+<p class="verdict"><strong>{html.escape(verdict_lead())}:</strong> {html.escape(verdict(b, paired=paired))}</p>
 <p>Recall = share of all queries (failed queries count), with its 95% interval (bootstrap over scenes, then
 queries). MTE/MRE = mean error of the queries within the threshold. Click a column header to sort. {html.escape(provenance(b))}{card_link}</p>
 {why_html}{tables}{imgs}

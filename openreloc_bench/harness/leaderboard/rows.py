@@ -15,7 +15,7 @@ from openreloc_bench.data.runs import QUERY_COLUMNS, backfill_difficulty, load_m
 from openreloc_bench.data.splits import DISPLACED_SPLIT, PLAIN_SPLIT
 from openreloc_bench.errors import DataError
 from openreloc_bench.harness.ablations import ROBUSTNESS_ROWS
-from openreloc_bench.harness.metrics import summarize
+from openreloc_bench.harness.metrics import THRESHOLDS_M, paired_difference, summarize
 from openreloc_bench.harness.tables import SCENE_KEYS
 from openreloc_bench.methods import uses_masks
 from openreloc_bench.tracks import MASK_FREE
@@ -145,6 +145,52 @@ def track_groups(rows: pd.DataFrame) -> list[tuple[str, pd.DataFrame]]:
     tracks = sorted(set(rows["track"]) - {MASK_FREE}, key=lambda t: (track_rank(t), t))
     groups = [(t, pd.concat([rows[rows["track"] == t], free])) for t in tracks]
     return groups if groups or free.empty else [(MASK_FREE, free)]
+
+
+PAIRED_COLUMNS = ("recall_50cm", "recall_25cm")
+"""The recalls the verdict weighs, and :func:`paired_differences` compares."""
+
+
+def paired_differences(q: pd.DataFrame, split: str = HEADLINE_SPLIT) -> pd.DataFrame:
+    """Every two methods of a track (those that read no masks stand in each) compared on the queries of
+    ``split`` both answered: ``diff`` = ``method``'s recall minus ``other``'s in points (seeds averaged per
+    query), with its 95% interval (:func:`~openreloc_bench.harness.metrics.paired_difference`). One row
+    per (track, method, other, recall column), both orders."""
+    rows = []
+    s = q[q["split"] == split]
+    for track, group in track_groups(s):
+        keyed = group.assign(_key=group["scene"].astype(str) + "/" + group["query"].astype(str))
+        inside = {
+            col: keyed.assign(_hit=keyed["t_err_m"].fillna(np.inf) < THRESHOLDS_M[col.removeprefix("recall_")])
+            .groupby(["method", "_key"])["_hit"]
+            .mean()
+            .unstack(0)
+            for col in PAIRED_COLUMNS
+        }
+        scene_of = keyed.drop_duplicates("_key").set_index("_key")["scene"]
+        methods = sorted(keyed["method"].unique())
+        for col, table in inside.items():
+            for a in methods:
+                for b in methods:
+                    both = table[[a, b]].dropna() if a != b else None
+                    if both is None or both.empty:
+                        continue
+                    diff, lo, hi = paired_difference(
+                        both[a].to_numpy(), both[b].to_numpy(), scene_of[both.index].to_numpy()
+                    )
+                    rows.append(
+                        {
+                            "track": track,
+                            "method": a,
+                            "other": b,
+                            "column": col,
+                            "diff": diff,
+                            "lo": lo,
+                            "hi": hi,
+                            "n_queries": len(both),
+                        }
+                    )
+    return pd.DataFrame(rows, columns=["track", "method", "other", "column", "diff", "lo", "hi", "n_queries"])
 
 
 def recorded_tracks(q: pd.DataFrame) -> pd.DataFrame:

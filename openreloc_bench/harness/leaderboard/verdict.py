@@ -1,6 +1,9 @@
 """A board's verdict line: per track, who leads on the headline split at 50 and at 25 cm, by how much,
-and at what map size. Where the rows carry 95% intervals (``recall_50cm_lo`` / ``_hi``), a best recall
-whose interval overlaps the next method's is no lead: the two are level."""
+and at what map size. A lead must hold on the same queries: where the board compared the two methods
+query by query (:func:`~.rows.paired_differences`), the best is ahead only when the interval of the
+difference lies above zero; without that comparison, where the rows carry 95% intervals
+(``recall_50cm_lo`` / ``_hi``), a best recall whose interval overlaps the next method's is no lead. Either
+way a difference the intervals do not carry calls the two level."""
 
 from __future__ import annotations
 
@@ -49,14 +52,39 @@ def _value(row: pd.Series, col: str) -> str:
     return _recall(row[col]) + ("" if ci is None else f" [{_recall(ci[0])}, {_recall(ci[1])}]")
 
 
-def _at(rows: pd.DataFrame, col: str, cm: int) -> tuple[list[str], str, str, list[str]]:
-    """Who comes first on ``col``, how ('leads', 'tie', or 'are level' where the best of the rest's interval
-    overlaps the leader's), 'at 50 cm (66.7 vs b 66.3)' and the methods that names, leaders first."""
+def _paired(paired: pd.DataFrame | None, a: str, b: str, col: str) -> tuple[float, float, float] | None:
+    """``a`` minus ``b`` on ``col`` over the queries both answered, with its interval; None if not compared."""
+    if paired is None or paired.empty:
+        return None
+    hit = paired[(paired["method"] == a) & (paired["other"] == b) & (paired["column"] == col)]
+    return None if hit.empty else (float(hit["diff"].iloc[0]), float(hit["lo"].iloc[0]), float(hit["hi"].iloc[0]))
+
+
+def _at(
+    rows: pd.DataFrame, col: str, cm: int, paired: pd.DataFrame | None = None
+) -> tuple[list[str], str, str, list[str]]:
+    """Who comes first on ``col``, how ('leads', 'tie', or 'are level' where the difference to the best of
+    the rest is not carried by its interval: paired on the same queries where ``paired`` has the two, else
+    where the two recalls' intervals overlap), 'at 50 cm (66.7 vs b 66.3)' and the methods that names,
+    leaders first."""
     leaders, top, runner = _leaders(rows, col)
     first = rows[rows["method"] == leaders[0]].iloc[0]
     if runner is None:
         return leaders, "tie", f"at {cm} cm ({_value(first, col)})", leaders
     named = [*leaders, runner.method]
+    same = _paired(paired, leaders[0], runner.method, col)
+    if same is not None:
+        d, lo, hi = same
+        gap = f"{d:+.1f} [{lo:+.1f}, {hi:+.1f}] on the same queries"
+        if lo <= 0:
+            return named, "are level", f"at {cm} cm ({_recall(first[col])} vs {_recall(runner[col])}, {gap})", named
+        verb = "tie" if len(leaders) > 1 else "leads"
+        return (
+            leaders,
+            verb,
+            f"at {cm} cm ({_recall(first[col])} vs {runner.method} {_recall(runner[col])}, {gap})",
+            named,
+        )
     a, b = _interval(first, col), _interval(runner, col)
     if a is not None and b is not None and a[0] <= b[1]:
         return named, "are level", f"at {cm} cm ({_value(first, col)} vs {_value(runner, col)})", named
@@ -69,10 +97,10 @@ def _map_size(row: pd.Series) -> str:
     return f"{format_cell('map_mb', v)} MB" if pd.notna(v) and v > 0 else "not recorded"
 
 
-def track_verdict(rows: pd.DataFrame) -> str:
+def track_verdict(rows: pd.DataFrame, paired: pd.DataFrame | None = None) -> str:
     """Who leads one track's rows (one per method: ``method``, ``recall_50cm``, ``recall_25cm``,
     ``map_mb``) at 50 cm and at 25 cm, with the recall of the best of the rest, and the map size of every
-    method it names."""
+    method it names; ``paired``: the track's :func:`~.rows.paired_differences` rows, where there are."""
     rows = rows.drop_duplicates("method")
     sizes = {r.method: _map_size(r) for _, r in rows.iterrows()}
     if len(rows) == 1:
@@ -81,8 +109,8 @@ def track_verdict(rows: pd.DataFrame) -> str:
             f"only {r.method} ran ({_recall(r.recall_50cm)} at 50 cm, {_recall(r.recall_25cm)} at 25 cm; "
             f"map size {sizes[r.method]})"
         )
-    lead50, verb50, at50, named50 = _at(rows, "recall_50cm", 50)
-    lead25, verb25, at25, named25 = _at(rows, "recall_25cm", 25)
+    lead50, verb50, at50, named50 = _at(rows, "recall_50cm", 50, paired)
+    lead25, verb25, at25, named25 = _at(rows, "recall_25cm", 25, paired)
     text = f"{_names(lead50)} {verb50} {at50}"
     if (lead25, verb25) == (lead50, verb50):
         text += f" and {at25}"
@@ -92,12 +120,13 @@ def track_verdict(rows: pd.DataFrame) -> str:
     return f"{text}; map size: {', '.join(f'{m} {sizes[m]}' for m in named)}"
 
 
-def verdict(b: pd.DataFrame, split: str = HEADLINE_SPLIT) -> str:
+def verdict(b: pd.DataFrame, split: str = HEADLINE_SPLIT, paired: pd.DataFrame | None = None) -> str:
     """The board's verdict, one line made from its rows (columns ``method``, ``track``, ``split``,
     ``recall_50cm``, ``recall_25cm``, ``map_mb``): per track, in the board's order, who leads on ``split``
-    at 50 cm and at 25 cm, by how much, and at what map size (:func:`track_verdict`). Methods that read
-    no masks stand in every track's comparison. :data:`DIAGNOSTICS` and :data:`ABLATIONS` are not weighed
-    (the line says so where the board has some), unless a track holds nothing else."""
+    at 50 cm and at 25 cm, by how much, and at what map size (:func:`track_verdict`), weighed on the same
+    queries where ``paired`` (:func:`~.rows.paired_differences` of ``split``) compares the two. Methods that
+    read no masks stand in every track's comparison. :data:`DIAGNOSTICS` and :data:`ABLATIONS` are not
+    weighed (the line says so where the board has some), unless a track holds nothing else."""
     s = b[b["split"] == split]
     if s.empty:
         return f"No method ran the {split} split: no verdict."
@@ -107,7 +136,8 @@ def verdict(b: pd.DataFrame, split: str = HEADLINE_SPLIT) -> str:
         if out.all():  # nothing else on the track: weigh what there is
             out = np.zeros(len(rows), dtype=bool)
         aside |= set(rows.loc[out, "method"])
-        sentences.append(f"{TRACK_NAMES.get(track, f'{track} track')}: {track_verdict(rows[~out])}.")
+        same = None if paired is None or paired.empty else paired[paired["track"] == track]
+        sentences.append(f"{TRACK_NAMES.get(track, f'{track} track')}: {track_verdict(rows[~out], same)}.")
     skipped = [f"the diagnostic {m}" for m in sorted(aside & set(DIAGNOSTICS))]
     if aside & set(ABLATIONS):
         n = len(aside & set(ABLATIONS))

@@ -36,7 +36,9 @@ def test_the_summary_reads_the_plans_headline_split_with_mask_free_methods_last(
 
 def test_the_verdict_block_weighs_the_headline_split(tmp_path: Path) -> None:
     plan = CampaignPlan(suites=["s1"], methods=["a", "b"], tracks=["predicted"], splits=["query_light1"])
-    block = campaign_page.verdict_block(rows(), plan, tmp_path / "boards", tmp_path / "README.md", "c" * 40, 3)
+    block = campaign_page.verdict_block(
+        rows(), pd.DataFrame(), plan, tmp_path / "boards", tmp_path / "README.md", "c" * 40, 3
+    )
     assert block.startswith(campaign_page.VERDICT_BEGIN) and block.endswith(campaign_page.VERDICT_END)
     assert "query_light1 split" in block and "3 step(s) of the plan still to run" in block
     assert "- **[s1](boards/s1/leaderboard.md)**: Predicted track: b leads at 50 cm (20.0 vs a 10.0)" in block

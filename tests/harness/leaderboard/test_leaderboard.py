@@ -124,6 +124,9 @@ def test_boards_open_with_the_plots_that_explain_the_verdict(tmp_path: Path) -> 
         "![cumulative_translation](plots/cumulative_translation.png)",
         "![recall_vs_lighting](plots/recall_vs_lighting.png)",
     ]
-    assert "methods whose whiskers overlap are level" in md
+    assert "which is sharper than comparing these whiskers" in md
+    paired = pd.read_csv(out / "paired.csv")  # what the verdict weighs: both methods on the same 4 queries
+    assert out / "paired.csv" in files and set(paired.method) == {"sift-pnp", "nearest-frame"}
+    assert (paired.n_queries == 4).all()
     assert page.index("<h2>Why</h2>") < page.index("<table")
     assert page.count('src="plots/headline_recall.png"') == 1  # not again among the other plots

@@ -6,7 +6,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from openreloc_bench.harness.leaderboard.rows import binned_recall, provenance, robustness_drops
+from openreloc_bench.harness.leaderboard.rows import binned_recall, paired_differences, provenance, robustness_drops
 from tests.harness.leaderboard.boards import errors
 
 
@@ -90,3 +90,26 @@ def test_binned_recall_counts_queries_and_pools_seeds_per_bin() -> None:
         binned_recall(q, "gap_m", (0, 0.5, 0.25))
     with pytest.raises(ValueError, match="no column 'gap_deg'"):
         binned_recall(q, "gap_deg", (0, 10))
+
+
+def test_paired_differences_compare_every_two_methods_of_a_track_on_the_queries_both_answered() -> None:
+    """sift-pnp reads no masks, so it stands in the predicted track; a query only one method answered
+    is not compared; seeds are averaged per query."""
+    t_or = [0.1, 0.1, 0.1, 0.7, 0.1, 0.7]
+    t_sift = [0.1, 0.7, 0.7, 0.7, 0.1]  # the sixth query: no row
+    q = pd.concat(
+        [
+            queries("openreloc", "predicted", "query", t_or),
+            queries("sift-pnp", "mask-free", "query", t_sift),
+            queries("openreloc", "predicted", "query_light4", [0.7] * 6),
+        ]
+    )
+    q["scene"], q["query"] = (
+        "s",
+        [f"query/{i}" for i in range(6)] + [f"query/{i}" for i in range(5)] + [f"query_light4/{i}" for i in range(6)],
+    )
+    p = paired_differences(q)
+    row = p[(p.method == "openreloc") & (p.other == "sift-pnp") & (p.column == "recall_25cm")].iloc[0]
+    assert row.track == "predicted" and row.n_queries == 5 and row["diff"] == pytest.approx(40.0)
+    back = p[(p.method == "sift-pnp") & (p.other == "openreloc") & (p.column == "recall_25cm")].iloc[0]
+    assert back["diff"] == pytest.approx(-40.0) and set(p.column) == {"recall_50cm", "recall_25cm"}

@@ -73,3 +73,27 @@ def test_verdict_calls_overlapping_intervals_level_not_a_lead() -> None:
         "sift-pnp at 25 cm (66.0 [60.6, 71.4] vs openreloc 55.4 [49.8, 60.2]); "
         "map size: openreloc 0.75 MB, sift-pnp 221 MB."
     )
+
+
+def test_verdict_weighs_the_difference_on_the_same_queries_where_the_board_has_it() -> None:
+    """Overlapping intervals, but openreloc ahead on the same queries: a lead; a paired interval across
+    zero keeps the two level."""
+    b = runs(("openreloc", "predicted", 77.5, 77.5, 2.9), ("sift-pnp", "mask-free", 67.5, 67.5, 21.0))
+    b["recall_25cm_lo"], b["recall_25cm_hi"] = [68.5, 55.4], [86.3, 80.6]
+    b["recall_50cm_lo"], b["recall_50cm_hi"] = [68.5, 55.4], [86.3, 80.6]
+    assert "are level" in verdict(b)
+
+    def paired(lo: float, hi: float) -> pd.DataFrame:
+        return pd.DataFrame(
+            [("predicted", "openreloc", "sift-pnp", col, 10.0, lo, hi, 320) for col in ("recall_50cm", "recall_25cm")],
+            columns=["track", "method", "other", "column", "diff", "lo", "hi", "n_queries"],
+        )
+
+    assert verdict(b, paired=paired(3.1, 16.4)) == (
+        "Predicted track: openreloc leads at 50 cm (77.5 vs sift-pnp 67.5, +10.0 [+3.1, +16.4] on the same "
+        "queries) and at 25 cm (77.5 vs sift-pnp 67.5, +10.0 [+3.1, +16.4] on the same queries); "
+        "map size: openreloc 2.9 MB, sift-pnp 21 MB."
+    )
+    assert "openreloc and sift-pnp are level at 50 cm (77.5 vs 67.5, +10.0 [-0.5, +16.4]" in verdict(
+        b, paired=paired(-0.5, 16.4)
+    )

@@ -68,7 +68,7 @@ def read_scannet(root: Path | str, split: str = "scannet") -> SceneSequence:
         records.append(FrameRecord(fid, color, T, depth, inst if inst.exists() else None))
     if not records:
         raise DataError(root / "pose", "no frames with a valid pose")
-    return at_depth_size(split, Kc, records, skipped)
+    return at_depth_size(split, Kc, records, skipped, root=root)
 
 
 def at_depth_size(
@@ -77,6 +77,7 @@ def at_depth_size(
     records: list[FrameRecord],
     skipped: dict[str, str],
     depth_scale: float = io.DEPTH_SCALE_MM,
+    root: Path | None = None,
 ) -> ResizingSequence:
     """Frames of a sensor whose depth is registered to a larger colour image (ScanNet's and 12-Scenes'
     Structure sensor): served at the depth size, with the colour intrinsics rescaled to it."""
@@ -85,7 +86,7 @@ def at_depth_size(
     K = np.array(K_color, dtype=np.float64)
     K[0] *= dw / cw
     K[1] *= dh / ch
-    return ResizingSequence(split, K, dw, dh, records, depth_scale, skipped=skipped)
+    return ResizingSequence(split, K, dw, dh, records, depth_scale, skipped=skipped, root=root)
 
 
 class ResizingSequence(SceneSequence):

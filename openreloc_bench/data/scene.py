@@ -335,7 +335,7 @@ def read_split(split_dir: Path, split: str | None = None) -> SceneSequence:
     if not records:
         raise DataError(pose_dir, "no frames (no pose files)")
     w, h = _image_size(records[0].color_path)
-    return SceneSequence(split, K, w, h, records)
+    return SceneSequence(split, K, w, h, records, root=split_dir.parent)
 
 
 def _id_key(stem: str) -> tuple[int, str]:

@@ -74,4 +74,4 @@ def read_tum(root: Path | str, K: np.ndarray | None = None, max_dt: float = 0.02
         raise DataError(root, f"no colour frame has depth and ground truth within {max_dt} s")
     h, w = io.read_rgb(records[0].color_path).shape[:2]
     K = check_intrinsics(TUM_DEFAULT_K if K is None else K, root / "calibration")
-    return SceneSequence(split, K, w, h, records, depth_scale=TUM_DEPTH_SCALE, skipped=skipped)
+    return SceneSequence(split, K, w, h, records, depth_scale=TUM_DEPTH_SCALE, skipped=skipped, root=root)

@@ -61,7 +61,7 @@ def read_12scenes(root: Path | str, split: str = "12scenes") -> SceneSequence:
     if not records:
         raise DataError(root / FRAMES, "no frame with a valid pose")
     K_color = check_intrinsics(K_color, info_path)
-    return at_depth_size(split, K_color, records, skipped, depth_scale)
+    return at_depth_size(split, K_color, records, skipped, depth_scale, root)
 
 
 def read_test_frames(root: Path) -> int:

@@ -66,6 +66,9 @@ class SceneSequence:
     """Depth PNG units per metre (1000 for ScanNet/this project, 5000 for TUM)."""
     skipped: dict[str, str] = field(default_factory=dict)
     """Frames the reader dropped (e.g. invalid ScanNet poses), id -> reason."""
+    root: Path | None = None
+    """The folder the sequence was read from: a generated scene's (its ``objects.json`` and ``scene.json``
+    lie there) or a recording's own; None for a sequence made in memory."""
     opened_for: RecordedTrack | None = None
     """The track :meth:`~openreloc_bench.data.scene.Scene.sequence` opened it for; None: opened without
     one, giving every instance image there is (see :attr:`track`)."""

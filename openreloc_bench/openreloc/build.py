@@ -17,7 +17,6 @@ import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Literal
 
 import numpy as np
@@ -234,8 +233,8 @@ def _downsample(points: np.ndarray, voxel: float, cap: int, rng: np.random.Gener
 
 def _objects(seq: SceneSequence) -> dict:
     """The scene's ``objects.json`` entries (empty for scenes without one, e.g. ScanNet exports)."""
-    scene_dir = Path(seq.records[0].color_path).parent.parent.parent
-    return Scene(scene_dir).objects if (scene_dir / "objects.json").exists() else {}
+    root = seq.root
+    return Scene(root).objects if root is not None and (root / "objects.json").exists() else {}
 
 
 def _reference_labels(

@@ -112,13 +112,13 @@ def fuse_tsdf(seq: SceneSequence, cfg: FusionConfig, progress: bool = True) -> R
     if skipped:
         log.warning("skipped %d of %d mapping frames without usable depth", len(skipped), len(seq))
     if not usable.any():
-        raise DataError(seq.records[0].color_path.parent.parent, "no mapping frame has usable depth")
+        raise DataError(seq.root or seq.records[0].color_path.parent, "no mapping frame has usable depth")
     try:
         vertices = vbg.extract_triangle_mesh(weight_threshold=cfg.min_weight).vertex.positions.numpy()
     except RuntimeError:  # open3d raises instead of returning an empty mesh
         vertices = np.zeros((0, 3))
     if len(vertices) == 0:
-        raise DataError(seq.records[0].color_path.parent.parent, "TSDF fusion produced no surface")
+        raise DataError(seq.root or seq.records[0].color_path.parent, "TSDF fusion produced no surface")
     pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(vertices.astype(np.float64)))
     points = np.asarray(pcd.voxel_down_sample(cfg.voxel_size).points, dtype=np.float32)
     order = np.lexsort(points.T[::-1])  # deterministic order, independent of open3d's hashing

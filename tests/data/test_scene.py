@@ -231,3 +231,10 @@ def test_a_sequence_carries_the_track_it_was_opened_for(tiny_scene: Path):
     unmasked = scene.sequence("query")
     unmasked.records[0].instance_path = None
     assert unmasked.track == "predicted" and unmasked[1].instance is not None
+
+
+def test_a_sequence_knows_the_folder_it_was_read_from(tiny_scene: Path):
+    """Where its objects.json lies (the map builder reads it there), for every split."""
+    scene = Scene(tiny_scene)
+    assert scene.sequence("mapping").root == scene.sequence("query").root == tiny_scene
+    assert scene.sequence("mapping").subset([0]).root == tiny_scene

@@ -32,7 +32,7 @@ def write_tum_sequence(root: Path) -> Path:
 
 def test_association_depth_factor_and_poses(tmp_path: Path):
     seq = read_tum(write_tum_sequence(tmp_path / "fr1"))
-    assert len(seq) == 5 and len(seq.skipped) == 1
+    assert len(seq) == 5 and len(seq.skipped) == 1 and seq.root == tmp_path / "fr1"
     f = seq[1]
     assert np.allclose(f.depth, 2.0)  # 10000 / 5000
     t_rgb = 1 / 30

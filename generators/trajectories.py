@@ -37,6 +37,8 @@ CHECK_WIDTH = 160
 """Width of the low-resolution instance render used for the query visibility check."""
 MIN_OBJECT_SHARE = 0.005
 """An object counts as visible when it covers at least this share of the image."""
+MAPPING_INSET = (0.25, 1.1)
+"""The mapping loop's inset from a room's walls: this share of the room's shorter side, at most this (m)."""
 NEAR_QUERY_ROUNDS = 4
 """Most ``query_near`` poses taken from one gap between mapping frames (short paths need several)."""
 
@@ -162,12 +164,29 @@ def _snap_free(occ: Occupancy, region: np.ndarray, pts: np.ndarray, room_k: int)
     return snapped[keep]
 
 
-def _room_loop(occ: Occupancy, region: np.ndarray, k: int, room: Room, start: np.ndarray) -> np.ndarray:
+def _room_loop(
+    occ: Occupancy,
+    region: np.ndarray,
+    k: int,
+    room: Room,
+    start: np.ndarray,
+    inset: tuple[float, float],
+    clockwise: bool,
+) -> np.ndarray:
+    """A closed loop around room ``k`` inset from its walls by ``inset`` (share of the room's shorter side, at
+    most this many metres), counter-clockwise or ``clockwise``, from the point nearest ``start``."""
     x0, y0, x1, y1 = room.rect
-    inset = float(np.clip(0.25 * min(x1 - x0, y1 - y0), WALL_CLEARANCE + 0.1, 1.1))
+    margin = float(np.clip(inset[0] * min(x1 - x0, y1 - y0), WALL_CLEARANCE + 0.1, inset[1]))
     corners = np.array(
-        [[x0 + inset, y0 + inset], [x1 - inset, y0 + inset], [x1 - inset, y1 - inset], [x0 + inset, y1 - inset]]
+        [
+            [x0 + margin, y0 + margin],
+            [x1 - margin, y0 + margin],
+            [x1 - margin, y1 - margin],
+            [x0 + margin, y1 - margin],
+        ]
     )
+    if clockwise:
+        corners = corners[::-1]
     ring = np.vstack([corners, corners[:1]])
     seg = np.linalg.norm(np.diff(ring, axis=0), axis=1)
     s = np.arange(0, seg.sum(), GRID_RES)
@@ -219,6 +238,78 @@ def _resample(samples: list, spacing: float) -> list:
     return out
 
 
+def _room_order(layout: Layout, rooms: list[Room], first: int) -> list[int]:
+    """Indices into ``rooms`` (one floor's): depth-first through the door graph from ``rooms[first]``, then
+    the rooms it does not reach."""
+    g = layout.room_graph().subgraph(r.name for r in rooms)
+    index = {r.name: k for k, r in enumerate(rooms)}
+    order = [index[name] for name in nx.dfs_preorder_nodes(g, rooms[first].name)]
+    return order + [k for k in range(len(rooms)) if k not in order]
+
+
+def _route(
+    occ: Occupancy,
+    region: np.ndarray,
+    order: list[int],
+    start: np.ndarray | None,
+    inset: tuple[float, float],
+    clockwise: bool,
+) -> list[tuple[np.ndarray, Room | None, int]]:
+    """A camera route through the rooms ``order`` of ``occ``'s floor, ~GRID_RES apart: a loop in each room
+    (:func:`_room_loop`), the first from the point nearest ``start`` (default: the room's centre), each
+    joined to the next by the shortest path. Samples are (xy, room or None on the links between rooms, floor)."""
+    finder = _PathFinder(occ)
+    samples: list[tuple[np.ndarray, Room | None, int]] = []
+    pos = None
+    for k in order:
+        room = occ.rooms[k]
+        begin = pos if pos is not None else (room.centre[:2] if start is None else start)
+        loop = _room_loop(occ, region, k, room, begin, inset, clockwise)
+        if len(loop) < 2:
+            continue
+        if pos is not None:
+            link = finder.path(pos, loop[0])
+            if link is not None and len(link) > 1:
+                for p in link[1:-1]:
+                    samples.append((p, None, occ.floor))
+        loop = _densify(occ, finder, loop)
+        for p in loop:
+            samples.append((p, room, occ.floor))
+        pos = loop[-1]
+    return samples
+
+
+def _travelled(xy: np.ndarray) -> np.ndarray:
+    """Distance travelled along a path (m) at each of its points."""
+    return np.cumsum(np.r_[0.0, np.linalg.norm(np.diff(xy, axis=0), axis=1)])
+
+
+def _camera_height(dist: np.ndarray, phase: float, period_m: float) -> np.ndarray:
+    """Height above the floor of a hand-held camera, bobbing within :data:`MAPPING_HEIGHT` along the path."""
+    return np.mean(MAPPING_HEIGHT) + 0.5 * np.diff(MAPPING_HEIGHT)[0] * np.sin(2 * np.pi * dist / period_m + phase)
+
+
+def _travel_heading(xy: np.ndarray, i: int, still: float) -> float:
+    """Direction of travel at point ``i`` of a fine path (over 12 points either side); ``still`` where the
+    path does not move."""
+    d = xy[min(i + 12, len(xy) - 1)] - xy[max(i - 12, 0)]
+    return np.arctan2(d[1], d[0]) if np.linalg.norm(d) > 1e-6 else still
+
+
+def _smooth_orientation(
+    yaw: np.ndarray, pitch: np.ndarray, floors: np.ndarray, window: int = 25
+) -> tuple[np.ndarray, np.ndarray]:
+    """Yaw (unwrapped) and pitch averaged over ``window`` points of a fine path within each floor: a hand-held
+    camera turns smoothly (25 points: ~0.6 m)."""
+    yaw = np.unwrap(yaw)
+    kernel = np.ones(window) / window
+    for f in np.unique(floors):
+        m = floors == f
+        yaw[m] = ndimage.convolve1d(yaw[m], kernel, mode="nearest")
+        pitch[m] = ndimage.convolve1d(pitch[m], kernel, mode="nearest")
+    return yaw, pitch
+
+
 def mapping_trajectory(layout: Layout, spec: SceneSpec) -> np.ndarray:
     """Mapping poses (N,4,4) through every room of every floor."""
     path, frames = mapping_path(layout, spec)
@@ -232,38 +323,16 @@ def mapping_path(layout: Layout, spec: SceneSpec) -> tuple[np.ndarray, np.ndarra
     samples = []  # (xy, room or None for links between rooms, floor), ~GRID_RES apart
     for f in range(len(layout.floor_z)):
         occ = occupancy_grid(layout, f)
-        finder = _PathFinder(occ)
         region = walkable_region(occ)  # labelled once per floor, not once per room
-        rooms = occ.rooms
-        g = layout.room_graph().subgraph(r.name for r in rooms)
-        order = [n for n in nx.dfs_preorder_nodes(g, rooms[0].name)]
-        order += [r.name for r in rooms if r.name not in order]
-        by_name = {r.name: (k, r) for k, r in enumerate(rooms)}
-        pos = None
-        for name in order:
-            k, room = by_name[name]
-            loop = _room_loop(occ, region, k, room, room.centre[:2] if pos is None else pos)
-            if len(loop) < 2:
-                continue
-            if pos is not None:
-                link = finder.path(pos, loop[0])
-                if link is not None and len(link) > 1:
-                    for p in link[1:-1]:
-                        samples.append((p, None, f))
-            loop = _densify(occ, finder, loop)
-            for p in loop:
-                samples.append((p, room, f))
-            pos = loop[-1]
+        samples += _route(occ, region, _room_order(layout, occ.rooms, 0), None, MAPPING_INSET, clockwise=False)
     if not samples:
         raise RuntimeError("no free space for a mapping trajectory (rooms too cluttered)")
     samples = _resample(samples, GRID_RES / 4)
     xy = np.array([s[0] for s in samples])
     floors = np.array([s[2] for s in samples])
-    step = np.r_[0.0, np.linalg.norm(np.diff(xy, axis=0), axis=1)]
-    dist = np.cumsum(step)
+    dist = _travelled(xy)
     phase = rng.uniform(0, 2 * np.pi, 2)
-    height = np.mean(MAPPING_HEIGHT) + 0.5 * np.diff(MAPPING_HEIGHT)[0] * np.sin(2 * np.pi * dist / 7.0 + phase[0])
-    z = np.array([layout.floor_z[f] for f in floors]) + height
+    z = np.array([layout.floor_z[f] for f in floors]) + _camera_height(dist, phase[0], 7.0)
     yaw = np.empty(len(xy))
     pitch = np.empty(len(xy))
     for i, (p, room, _) in enumerate(samples):
@@ -272,17 +341,9 @@ def mapping_path(layout: Layout, spec: SceneSpec) -> tuple[np.ndarray, np.ndarra
             yaw[i] = np.arctan2(d[1], d[0]) + np.radians(35) * np.sin(2 * np.pi * dist[i] / 3.0 + phase[1])
             pitch[i] = np.arctan2(room.z0 + 0.8 - z[i], max(np.linalg.norm(d), 0.5))
         else:
-            j = min(i + 12, len(xy) - 1)
-            d = xy[j] - xy[max(i - 12, 0)]
-            yaw[i] = np.arctan2(d[1], d[0]) if np.linalg.norm(d) > 1e-6 else (yaw[i - 1] if i else 0.0)
+            yaw[i] = _travel_heading(xy, i, yaw[i - 1] if i else 0.0)
             pitch[i] = np.radians(-10)
-    # smooth orientation along the path (unwrap, moving average within a floor)
-    yaw = np.unwrap(yaw)
-    kernel = np.ones(25) / 25  # ~0.6 m of path
-    for f in np.unique(floors):
-        m = floors == f
-        yaw[m] = ndimage.convolve1d(yaw[m], kernel, mode="nearest")
-        pitch[m] = ndimage.convolve1d(pitch[m], kernel, mode="nearest")
+    yaw, pitch = _smooth_orientation(yaw, pitch, floors)
     pitch = np.clip(pitch, np.radians(-35), np.radians(5))
     poses = [_pose(np.r_[xy[i], z[i]], yaw[i], pitch[i]) for i in range(len(xy))]
     keep = [0]

@@ -26,7 +26,7 @@ from generators.odometry import align_to, drift, estimate_trajectory
 from generators.render import Renderer, create_renderer
 from generators.sensor import blend_subframes, exposure_poses, sensor_colour, sensor_depth
 from generators.spec import GENERATOR_VERSION, SceneSpec, SuiteSpec, spec_hash, spec_record
-from generators.trajectories import mapping_path, sample_near_queries, sample_queries, seen_counts
+from generators.trajectories import mapping_path, sample_near_queries, sample_queries, sample_walk, seen_counts
 from generators.variants import Lighting, hidden, query_lighting, sample_displacements
 from openreloc_bench import config, geometry
 from openreloc_bench.data import io, paths
@@ -37,11 +37,12 @@ from openreloc_bench.data.splits import (
     LIGHT,
     MAPPING_SPLIT,
     NEAR,
-    NEAR_SPLIT,
+    OWN_POSE_SPLITS,
     PLAIN,
     PLAIN_SPLIT,
     QUERY_SPLIT_TABLE,
     SPLITS,
+    WALK,
 )
 from openreloc_bench.errors import ConfigError, DataError
 from openreloc_bench.processes import pool_worker, workers_stopped_on_interrupt
@@ -163,7 +164,7 @@ def render_split(
     return reused
 
 
-RENDER_ORDER = (PLAIN, NEAR, LIGHT, DISPLACED)
+RENDER_ORDER = (PLAIN, NEAR, WALK, LIGHT, DISPLACED)
 """The order the query splits are rendered in, by kind (after the mapping split): the displaced split
 last, for it moves objects for good."""
 SENSOR_STREAM = 23
@@ -228,6 +229,7 @@ def write_scene(spec: SceneSpec, root: Path, resume: bool, progress: bool) -> Pa
             mapping = path[frames]
             queries, qinfo = sample_queries(layout, spec, mapping, renderer)
             near = sample_near_queries(layout, spec, path, frames, renderer)
+            walk = sample_walk(layout, spec)
         except RuntimeError as e:  # the spec asks for more than its rooms allow: the user's to change
             raise ConfigError(f"scene '{spec.name}': {e}") from None
         seen = seen_counts(layout, spec, renderer, queries)
@@ -235,7 +237,7 @@ def write_scene(spec: SceneSpec, root: Path, resume: bool, progress: bool) -> Pa
         lights = query_lighting(spec, len(layout.lights))
         splits: dict[str, tuple[np.ndarray, Lighting]] = {MAPPING_SPLIT: (mapping, Lighting())}
         for s in sorted(QUERY_SPLIT_TABLE, key=lambda s: RENDER_ORDER.index(s.kind)):
-            splits[s.name] = (near if s.kind == NEAR else queries, lights[s.name])
+            splits[s.name] = ({NEAR: near, WALK: walk}.get(s.kind, queries), lights[s.name])
         counts = {s: len(p) for s, (p, _) in splits.items()}
         extra = {
             "lighting": {s: asdict(li) for s, (_, li) in splits.items()},
@@ -266,7 +268,7 @@ def write_scene(spec: SceneSpec, root: Path, resume: bool, progress: bool) -> Pa
         info = scene_info(spec, layout, K, counts, extra)
         info["mapping_odometry"] = estimate_mapping_poses(root, writer, mapping, K, progress)
         writer.write_scene_info(info)
-    instances = {s: read_instances(root / s, len(splits[s][0])) for s in (PLAIN_SPLIT, NEAR_SPLIT, DISPLACED_SPLIT)}
+    instances = {s: read_instances(root / s, len(splits[s][0])) for s in (*OWN_POSE_SPLITS, DISPLACED_SPLIT)}
     shown = {d.id for d in displacements if d.shown_displaced}
     removed = {d.id for d in displacements if not d.shown_displaced}
     changes = changes_in_view(instances[DISPLACED_SPLIT], instances[PLAIN_SPLIT], shown, removed, layout.objects())

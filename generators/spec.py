@@ -37,7 +37,7 @@ periodicity, the ``query_near`` split, ``difficulty.csv``.
 gen4: benchmark data v3: a sensor model, changes among the objects the queries see (moved, removed,
 added), queries without a minimum of visible objects, dark splits without the camera's light.
 gen5: benchmark data v3 continued: photographed materials on half the objects' parts, bare painted walls
-in half the rooms."""
+in half the rooms, and the ``query_walk`` split (a second walk through the rooms)."""
 
 TRAINING_SEED_MIN = 1_000_000
 """Seeds >= this are reserved for TRAINING scenes (below :data:`VALIDATION_SEED_MIN`; the encoder's,
@@ -113,7 +113,7 @@ class SceneSpec:
     """Cap on mapping frames (subsampled evenly along the path); 0 = no cap."""
     n_query: int = 50
     """Query poses (shared by the query split and its variants); query_near has as many of its own, along
-    the mapping path."""
+    the mapping path, and query_walk as many frames of a second walk through the rooms."""
     query_min_distance: float = 0.3
     """Every query camera centre is at least this far (m) from every mapping camera centre..."""
     query_min_angle: float = 20.0

@@ -10,7 +10,9 @@ Queries: random free-space positions at 0.9-1.9 m with random yaw, varied pitch 
 kept only if far enough in position / orientation from every mapping frame (the viewpoint change is
 recorded per query) and if enough non-structural objects are visible (checked by rendering instance
 ids at low resolution). ``query_near`` poses lie on the mapping path between consecutive frames
-(:func:`sample_near_queries`).
+(:func:`sample_near_queries`). ``query_walk`` is a second walk through the rooms of one floor
+(:func:`sample_walk`): the mapping route's pieces (room order, room loops, links) from another start, on
+loops nearer the room centres walked the other way, looking ahead with a hand-held sweep.
 """
 
 from __future__ import annotations
@@ -39,6 +41,8 @@ MIN_OBJECT_SHARE = 0.005
 """An object counts as visible when it covers at least this share of the image."""
 MAPPING_INSET = (0.25, 1.1)
 """The mapping loop's inset from a room's walls: this share of the room's shorter side, at most this (m)."""
+WALK_INSET = (0.33, 1.4)
+"""``query_walk``'s loop: nearer the room's centre than the mapping's, so the walk takes another route."""
 NEAR_QUERY_ROUNDS = 4
 """Most ``query_near`` poses taken from one gap between mapping frames (short paths need several)."""
 
@@ -357,6 +361,45 @@ def mapping_path(layout: Layout, spec: SceneSpec) -> tuple[np.ndarray, np.ndarra
     if spec.max_mapping_frames and len(frames) > spec.max_mapping_frames:
         frames = frames[np.round(np.linspace(0, len(frames) - 1, spec.max_mapping_frames)).astype(int)]
     return np.array(poses), frames
+
+
+def sample_walk(layout: Layout, spec: SceneSpec) -> np.ndarray:
+    """``query_walk`` poses (n_query,4,4): the frames of a second recording of the rooms on another route
+    than the mapping's, as 7-Scenes' and 12-Scenes' test sequences are. It starts at a random point of a
+    random room and stays on its floor (a sequence does not jump between storeys); the rooms follow
+    depth-first from there, each walked round clockwise on a loop nearer its centre (:data:`WALK_INSET`),
+    the camera looking where it goes with a hand-held sweep of yaw and pitch. Consecutive frames are as
+    close as the mapping's: one ``mapping_step_m`` of travel or ``mapping_step_deg`` of turning apart,
+    whichever comes first (evenly along the whole route when it is shorter). Frames stand on the walkable
+    region the mapping covers, but not at the random queries' minimum distance and angle from the mapping
+    frames (``difficulty.csv`` records each frame's). Deterministic in the seed, on a random stream of its
+    own."""
+    rng = np.random.default_rng([spec.seed, 31])
+    first = layout.rooms[int(rng.integers(len(layout.rooms)))]
+    occ = occupancy_grid(layout, first.floor)
+    k = next(i for i, r in enumerate(occ.rooms) if r.name == first.name)
+    x0, y0, x1, y1 = first.rect
+    start = rng.uniform([x0, y0], [x1, y1])
+    samples = _route(occ, walkable_region(occ), _room_order(layout, occ.rooms, k), start, WALK_INSET, clockwise=True)
+    if not samples:
+        raise RuntimeError("no free space for the query_walk route (rooms too cluttered)")
+    xy = np.array([s[0] for s in _resample(samples, GRID_RES / 4)])
+    dist = _travelled(xy)
+    phase = rng.uniform(0, 2 * np.pi, 3)
+    yaw = np.empty(len(xy))
+    for i in range(len(xy)):
+        yaw[i] = _travel_heading(xy, i, yaw[i - 1] if i else 0.0)
+    yaw += np.radians(30) * np.sin(2 * np.pi * dist / 6.0 + phase[1])  # looking around while walking
+    pitch = np.radians(-12.0 + 10.0 * np.sin(2 * np.pi * dist / 4.0 + phase[2]))
+    yaw, pitch = _smooth_orientation(yaw, pitch, np.zeros(len(xy)), window=61)  # ~1.5 m: rounded corners
+    z = layout.floor_z[first.floor] + _camera_height(dist, phase[0], 5.0)
+    reach = np.searchsorted(dist, (spec.n_query - 1) * spec.mapping_step_m, side="right")  # the frames' part
+    path = np.array([_pose(np.r_[xy[i], z[i]], yaw[i], pitch[i]) for i in range(reach)])
+    turned = geometry.rotation_error(path[:-1], path[1:])
+    steps = np.maximum(np.diff(dist[:reach]) / spec.mapping_step_m, turned / spec.mapping_step_deg)
+    motion = np.r_[0.0, np.cumsum(steps)]
+    picks = np.searchsorted(motion, np.linspace(0.0, min(motion[-1], spec.n_query - 1.0), spec.n_query), side="right")
+    return path[picks - 1]
 
 
 @dataclass

@@ -42,7 +42,8 @@ exactly every 0.5 m. 2: no surface repeats (each part's texture covers it whole,
 scale and offset, and metre-scale wear); a ``query_near`` split along the mapping path; ``difficulty.csv``.
 3: a structured-light sensor model (noisy, quantised depth with missing returns; colour noise growing as
 light falls, vignetting, JPEG); queries without a minimum of visible objects; changes among the objects
-the queries see (moved, removed, added); the dark splits without the camera's own light."""
+the queries see (moved, removed, added); the dark splits without the camera's own light; a ``query_walk``
+split, the frames of a second walk through the rooms."""
 
 DIFFICULTY_COLUMNS = (
     "split",

@@ -19,6 +19,9 @@ DISPLACED = "displaced"
 """The query poses with some objects moved, rotated, removed or added."""
 NEAR = "near"
 """Poses of its own, along the mapping camera's path between two mapping frames."""
+WALK = "walk"
+"""Poses of its own: the frames of a second, separate walk through the rooms (a sequence, as 7-Scenes'
+and 12-Scenes' test recordings are)."""
 
 
 @dataclass(frozen=True)
@@ -28,7 +31,7 @@ class QuerySplit:
     name: str
     """Its folder in the scene, and its name in results."""
     kind: str
-    """What it tests: :data:`PLAIN`, :data:`LIGHT`, :data:`DISPLACED` or :data:`NEAR`."""
+    """What it tests: :data:`PLAIN`, :data:`LIGHT`, :data:`DISPLACED`, :data:`NEAR` or :data:`WALK`."""
     title: str
     """Its row in the robustness tables."""
     label: str
@@ -46,7 +49,7 @@ class QuerySplit:
     @property
     def shares_query_poses(self) -> bool:
         """Whether it is the plain query split or a variant of it (same poses, the robustness rows)."""
-        return self.kind != NEAR
+        return self.kind in (PLAIN, LIGHT, DISPLACED)
 
 
 QUERY_SPLIT_TABLE: tuple[QuerySplit, ...] = (
@@ -57,6 +60,7 @@ QUERY_SPLIT_TABLE: tuple[QuerySplit, ...] = (
     QuerySplit("query_light4", LIGHT, "Lighting 4", "light 4", 0.2, (1.0, 0.72, 0.52), 0.5, False),
     QuerySplit("query_displaced", DISPLACED, "Displaced objects", "displaced"),
     QuerySplit("query_near", NEAR, "Near the mapping path", "near"),
+    QuerySplit("query_walk", WALK, "A second walk", "walk"),
 )
 """Every query split, in the order of :data:`SPLITS`. The lighting variants follow the paper's four levels
 of decay: each dimmer than the last, the colour drifting warm / cool, the last two with a growing share of
@@ -80,5 +84,7 @@ LIGHT_SPLITS = split_names(PLAIN, LIGHT)
 """The query split under the mapping's lighting, then its variants under the decayed lightings."""
 (PLAIN_SPLIT,) = split_names(PLAIN)
 (DISPLACED_SPLIT,) = split_names(DISPLACED)
-(NEAR_SPLIT,) = split_names(NEAR)
 """The one split of each of these kinds (the generator measures the others' views against them)."""
+OWN_POSE_SPLITS = tuple(s.name for s in QUERY_SPLIT_TABLE if s.kind == PLAIN or not s.shares_query_poses)
+"""The query splits with poses of their own: the plain query split (its variants share its poses), then
+``query_near`` and ``query_walk``; the dataset card describes their viewpoints."""

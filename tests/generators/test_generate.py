@@ -11,18 +11,20 @@ import time
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 import yaml
 
+from generators import generate
 from generators.generate import generate_scene, generate_suite
 from generators.layout import build_layout
 from generators.sensor import SensorSpec
 from generators.spec import SceneSpec, load_suite, spec_hash
-from generators.trajectories import mapping_path
+from generators.trajectories import mapping_path, occupancy_grid, sample_walk
 from openreloc_bench import config, geometry
 from openreloc_bench.data import io
 from openreloc_bench.data.scene import DATA_VERSION, DIFFICULTY_COLUMNS, STRUCTURAL_CATEGORIES, Scene
-from openreloc_bench.data.splits import QUERY_SPLITS, SPLITS
+from openreloc_bench.data.splits import QUERY_SPLIT_BY_NAME, QUERY_SPLIT_TABLE, QUERY_SPLITS, SPLITS, WALK
 from openreloc_bench.errors import DataError
 
 TINY = dict(
@@ -68,8 +70,8 @@ def test_layout_on_disk(tiny: Path) -> None:
     assert scene.info["data_version"] == DATA_VERSION
     for split in QUERY_SPLITS:
         seq = scene.sequence(split)
-        same = np.allclose([r.T_wc for r in seq.records], [r.T_wc for r in q.records])
-        assert same == (split != "query_near")  # the variants share the query poses; query_near has its own
+        same = len(seq) == len(q) and np.allclose([r.T_wc for r in seq.records], [r.T_wc for r in q.records])
+        assert same == QUERY_SPLIT_BY_NAME[split].shares_query_poses  # query_near and query_walk: their own
         assert np.allclose(seq.K, geometry.intrinsics_from_fov(96, 72, 60.0))
     kinds = sorted(d["kind"] for d in scene.displacements())
     assert len(kinds) == 5 and kinds.count("removed") == 1 and kinds.count("added") == 1  # 3 + 1 + 1 of 12 objects
@@ -124,6 +126,43 @@ def test_query_near_lies_on_the_mapping_path(tiny: Path) -> None:
     assert np.allclose(mapping, path[frames], atol=1e-6)
     assert len(near) == TINY["n_query"]
     assert all(np.abs(path - T).max(axis=(1, 2)).min() < 1e-5 for T in near)  # poses of the camera's path
+
+
+def test_query_walk_is_a_second_walk_through_the_room(tiny: Path) -> None:
+    scene = Scene(tiny)
+    spec = SceneSpec(**TINY)
+    layout = build_layout(spec)
+    walk = scene.sequence("query_walk")
+    assert len(walk) == spec.n_query and scene.info["splits"]["query_walk"] == spec.n_query
+    assert np.allclose(walk.poses, sample_walk(layout, spec), atol=1e-6)
+    assert all(f.color.shape == (72, 96, 3) and f.instance.shape == (72, 96) for f in walk)
+    assert scene.info["lighting"]["query_walk"] == scene.info["lighting"]["query"]  # the mapping's lighting
+    step = np.linalg.norm(np.diff(walk.poses[:, :3, 3], axis=0), axis=1)
+    assert step.max() <= spec.mapping_step_m + 0.03  # one sequence
+    occ = occupancy_grid(layout, 0)
+    assert (occ.room_index[occ.cell(walk.poses[:, :2, 3])] >= 0).all()
+
+
+def test_the_walk_leaves_every_other_file_as_it_was(tiny: Path, tmp_path: Path, monkeypatch) -> None:
+    """The scene generated without the query_walk row: every other split, objects and displacements are
+    the same bytes, scene.json and difficulty.csv the same but for the walk's entries."""
+    monkeypatch.setattr(generate, "QUERY_SPLIT_TABLE", tuple(s for s in QUERY_SPLIT_TABLE if s.kind != WALK))
+    monkeypatch.setattr(generate, "OWN_POSE_SPLITS", ("query", "query_near"))
+    without = generate_scene(SceneSpec(**TINY), tmp_path, progress=False)
+    mine = {k: v for k, v in _files(tiny).items() if not k.startswith("query_walk/")}
+    theirs = _files(without)
+    differ = {k for k in mine.keys() | theirs.keys() if mine.get(k) != theirs.get(k)}
+    assert differ == {"scene.json", "difficulty.csv"}
+    info, before = io.read_json(tiny / "scene.json"), io.read_json(without / "scene.json")
+    for key in ("splits", "lighting"):
+        assert info[key].pop("query_walk") and info[key] == before[key]
+    assert info == before
+    table = pd.read_csv(tiny / "difficulty.csv", dtype={"frame": str})
+    assert (
+        table[table["split"] != "query_walk"]
+        .reset_index(drop=True)
+        .equals(pd.read_csv(without / "difficulty.csv", dtype={"frame": str}))
+    )
 
 
 def test_difficulty_measures_every_query_frame(tiny: Path) -> None:

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
+from scipy import ndimage
 
 from generators.layout import build_layout
 from generators.render import create_renderer
@@ -17,6 +19,7 @@ from generators.trajectories import (
     occupancy_grid,
     sample_near_queries,
     sample_queries,
+    sample_walk,
     walkable_region,
 )
 from openreloc_bench import geometry
@@ -120,3 +123,24 @@ def test_near_queries_lie_on_the_path_between_mapping_frames(scene) -> None:
         k = int(np.searchsorted(frames, j)) - 1
         assert frames[k] < j < frames[k + 1]
         assert 0.3 - 1e-9 <= (j - frames[k]) / (frames[k + 1] - frames[k]) <= 0.7 + 1e-9
+
+
+@pytest.mark.parametrize("spec", [SPEC, replace(SPEC, n_query=40)], ids=["short", "long"])
+def test_the_walk_is_a_smooth_sequence_on_another_route(scene, spec: SceneSpec) -> None:
+    layout, _ = scene
+    walk = sample_walk(layout, spec)
+    assert len(walk) == spec.n_query and geometry.is_rigid(walk) and np.array_equal(walk, sample_walk(layout, spec))
+    step = np.linalg.norm(np.diff(walk[:, :3, 3], axis=0), axis=1)
+    turn = geometry.rotation_error(walk[:-1], walk[1:])
+    assert step.max() <= spec.mapping_step_m + 0.03 and turn.max() <= spec.mapping_step_deg + 3  # as the mapping's
+    assert step.min() > 0.02  # a walk, not a camera standing still
+    occ = occupancy_grid(layout, 0)
+    region = ndimage.binary_dilation(walkable_region(occ), np.ones((3, 3)))  # straight stretches cut corners
+    assert region[occ.cell(walk[:, :2, 3])].all()
+    assert np.abs(walk[:, 2, 0]).max() < 1e-6 and (walk[:, 2, 3] >= QUERY_HEIGHT[0]).all()  # upright, hand-held
+    path, _ = mapping_path(layout, spec)
+    gap = np.linalg.norm(walk[:, None, :3, 3] - path[None, :, :3, 3], axis=2)
+    along = geometry.rotation_error(path[gap.argmin(axis=1)], walk)
+    assert np.median(gap.min(axis=1)) > 0.1 and np.median(along) > 30  # not the mapping camera's path
+    other = sample_walk(layout, replace(spec, seed=spec.seed + 1))
+    assert not np.allclose(other[:2], walk[:2])  # the seed chooses where it starts

@@ -143,13 +143,16 @@ def draw_floor(ax: plt.Axes, scene: Scene, floor: int, room_names: bool = True, 
 
 
 def floor_plan(scene: Scene) -> plt.Figure:
-    """One panel per floor: rooms, walls, objects, mapping path and query poses (arrows = viewing direction)."""
+    """One panel per floor: rooms, walls, objects, the mapping path, ``query_walk``'s path and the query poses
+    (arrows = viewing direction)."""
     floors = scene.info.get("floors") or [{"index": 0, "z": 0.0}]
     fig, axes = plt.subplots(1, len(floors), figsize=(7 * len(floors) + 2, 6), squeeze=False, layout="constrained")
-    seqs = {s: scene.sequence(s) for s in ("mapping", "query") if s in scene.splits()}
+    paths = {"mapping": dict(color="tab:blue", lw=1.0), "query_walk": dict(color="tab:green", lw=1.0)}
+    styles = {**paths, "query": dict(color="tab:red", lw=0)}
+    seqs = {s: scene.sequence(s) for s in styles if s in scene.splits()}
     for f, ax in enumerate(axes[0]):
         handles = draw_floor(ax, scene, f)
-        for split, style in (("mapping", dict(color="tab:blue", lw=1.0)), ("query", dict(color="tab:red", lw=0))):
+        for split, style in styles.items():
             if split not in seqs:
                 continue
             T = np.array([r.T_wc for r in seqs[split].records])
@@ -157,7 +160,7 @@ def floor_plan(scene: Scene) -> plt.Figure:
             if not m.any():
                 continue
             pos, fwd = T[m, :2, 3], T[m, :2, 2]
-            if split == "mapping":
+            if split in paths:
                 ax.plot(pos[:, 0], pos[:, 1], "-", alpha=0.7, zorder=6, **style)
             ax.quiver(
                 pos[:, 0],

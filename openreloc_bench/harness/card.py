@@ -28,20 +28,23 @@ from PIL import Image  # noqa: E402
 from openreloc_bench import bars  # noqa: E402
 from openreloc_bench.data import io, paths  # noqa: E402
 from openreloc_bench.data.scene import DATA_VERSION, Scene, check_scene_info, other_version  # noqa: E402
-from openreloc_bench.data.splits import QUERY_SPLITS  # noqa: E402
+from openreloc_bench.data.splits import OWN_POSE_SPLITS, QUERY_SPLIT_TABLE, QUERY_SPLITS  # noqa: E402
 from openreloc_bench.errors import DataError  # noqa: E402
 from openreloc_bench.harness.suites import scene_state, suite_spec  # noqa: E402
 from openreloc_bench.harness.tables import md_table  # noqa: E402
 
-SPLIT_COLUMNS = ("mapping", "query", "query_near", *(s for s in QUERY_SPLITS if s not in ("query", "query_near")))
-"""Splits in the order the scene table lists them: the mapping path, the two query sets, the variants."""
+VARIANT_SPLITS = tuple(s.name for s in QUERY_SPLIT_TABLE if s.shares_query_poses)
+"""The plain query split and its variants: the same poses."""
+SPLIT_COLUMNS = ("mapping", *OWN_POSE_SPLITS, *(s for s in QUERY_SPLITS if s not in OWN_POSE_SPLITS))
+"""Splits in the order the scene table lists them: the mapping path, the query sets with poses of their
+own, the variants."""
 
 AXES: dict[str, tuple[str, tuple[str, ...]]] = {
-    "gap_m": ("distance to the nearest mapping camera (m)", ("query", "query_near")),
-    "gap_deg": ("smallest rotation to a mapping frame within 1 m (deg)", ("query", "query_near")),
-    "visible_objects": ("objects covering >= 0.5% of the image", ("query", "query_near")),
-    "object_area": ("image share covered by objects", ("query", "query_near")),
-    "lookalikes_in_view": ("visible objects with an identical twin in the scene", ("query", "query_near")),
+    "gap_m": ("distance to the nearest mapping camera (m)", OWN_POSE_SPLITS),
+    "gap_deg": ("smallest rotation to a mapping frame within 1 m (deg)", OWN_POSE_SPLITS),
+    "visible_objects": ("objects covering >= 0.5% of the image", OWN_POSE_SPLITS),
+    "object_area": ("image share covered by objects", OWN_POSE_SPLITS),
+    "lookalikes_in_view": ("visible objects with an identical twin in the scene", OWN_POSE_SPLITS),
     "displaced_in_view": (
         "changes in view: moved or added objects it shows, removed ones it would",
         ("query_displaced",),
@@ -53,7 +56,12 @@ AXES: dict[str, tuple[str, tuple[str, ...]]] = {
 
 INTEGER_AXES = ("visible_objects", "lookalikes_in_view", "displaced_in_view")
 
-SPLIT_COLOURS = {"query": "tab:red", "query_near": "tab:blue", "query_displaced": "tab:purple"}
+SPLIT_COLOURS = {
+    "query": "tab:red",
+    "query_near": "tab:blue",
+    "query_walk": "tab:green",
+    "query_displaced": "tab:purple",
+}
 
 THUMB_W = 128
 """Width (px) of a contact-sheet thumbnail: enough to recognise a room, small enough to commit."""
@@ -212,8 +220,8 @@ def difficulty_stats(difficulty: pd.DataFrame) -> pd.DataFrame:
 
 
 def plot_difficulty(difficulty: pd.DataFrame) -> plt.Figure:
-    """Small multiples, one histogram per axis (query and query_near overlaid, same bins), and the light
-    level of each split as bars."""
+    """Small multiples, one histogram per axis (the query sets with poses of their own overlaid, same bins),
+    and the light level of each split as bars."""
     fig, axes = plt.subplots(2, 4, figsize=(13, 5.6))
     for ax, (axis, (what, splits)) in zip(axes.flat, AXES.items()):
         ax.set_title(axis, fontsize=10)
@@ -251,16 +259,16 @@ def _picks(n: int, k: int) -> list[int]:
 
 
 def contact_sheet(scene: Scene, difficulty: pd.DataFrame) -> np.ndarray:
-    """RGB thumbnails, one row per split: evenly spread frames of mapping, query and query_near, then one
-    query viewpoint in every variant (the one with the most moved objects in view)."""
+    """RGB thumbnails, one row per split: evenly spread frames of mapping and of each query set with poses of
+    its own, then one query viewpoint in every variant (the one with the most moved objects in view)."""
     seqs = {s: {r.frame_id: r.color_path for r in scene.sequence(s).records} for s in SPLIT_COLUMNS}
     rows = [
         [(s, f, seqs[s][f]) for f in (list(seqs[s])[i] for i in _picks(len(seqs[s]), SHEET_COLUMNS))]
-        for s in ("mapping", "query", "query_near")
+        for s in ("mapping", *OWN_POSE_SPLITS)
     ]
     moved = difficulty[(difficulty["scene"] == scene.name) & (difficulty["split"] == "query_displaced")]
     frame = moved.sort_values(["displaced_in_view", "frame"], ascending=[False, True])["frame"].iloc[0]
-    rows.append([(s, frame, seqs[s][frame]) for s in QUERY_SPLITS if s != "query_near"])
+    rows.append([(s, frame, seqs[s][frame]) for s in VARIANT_SPLITS])
     depths = {r.frame_id: r.depth_path for r in scene.sequence("mapping").records}
     rows.insert(1, [("depth", f, depths[f]) for _, f, _ in rows[0]])
     h = round(THUMB_W * scene.info["intrinsics"]["height"] / scene.info["intrinsics"]["width"])
@@ -403,8 +411,8 @@ def card_markdown(suite: Any, suite_file: str, scenes: list[Scene], difficulty: 
         "",
         "## Scenes in pictures",
         "",
-        "Rows: mapping frames spread over the split, their depth, query and query_near frames; one query "
-        "viewpoint in every variant (the one that sees the most changes). The plan: rooms, objects (changed "
+        "Rows: mapping frames spread over the split, their depth, query, query_near and query_walk frames; one "
+        "query viewpoint in every variant (the one that sees the most changes). The plan: rooms, objects (changed "
         "ones in red), the mapping path and the query poses.",
         "",
     ]

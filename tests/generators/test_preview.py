@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import shutil
 from dataclasses import asdict
 from pathlib import Path
 
@@ -95,6 +96,13 @@ def test_the_floor_plan_legend_names_everything_drawn(tmp_path: Path) -> None:
     legend = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
     assert legend[:3] == ["room: kitchen", "room: office", "walls"]
     assert legend[-2:] == ["mapping cameras (6)", "query cameras (3)"]
+    assert len(fig.axes[0].get_lines()) == 1  # the mapping path
+    plt.close(fig)
+    shutil.copytree(tmp_path / "plan" / "query", tmp_path / "plan" / "query_walk")
+    fig = floor_plan(Scene(tmp_path / "plan"))
+    legend = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
+    assert legend[-3:] == ["mapping cameras (6)", "query_walk cameras (3)", "query cameras (3)"]
+    assert len(fig.axes[0].get_lines()) == 2  # the mapping path and the walk's
     plt.close(fig)
 
 

@@ -107,7 +107,7 @@ def test_scene_table_counts_frames_and_objects_on_disk(written, suite):
     table = md_table(written[1], "scene").set_index("scene")
     assert list(table.index) == [*SCENES, "**total**"]
     splits = ["mapping", "query", "query_near", "query_light1", "query_light2", "query_light3"]
-    splits += ["query_light4", "query_displaced"]
+    splits += ["query_light4", "query_displaced", "query_walk"]
     for scene in SCENES:
         for split in splits:
             assert int(table.loc[scene, split]) == len(list((suite[1] / scene / split / "pose").glob("*.txt")))
@@ -144,7 +144,13 @@ def test_lookalike_groups_are_the_twins_of_each_scene(written, suite):
 def test_difficulty_percentiles_come_from_the_csv(written, suite):
     table = md_table(written[1], "axis")
     csv = pd.concat(pd.read_csv(suite[1] / s / "difficulty.csv") for s in SCENES)
-    for axis, split in (("gap_m", "query"), ("gap_deg", "query_near"), ("displaced_in_view", "query_displaced")):
+    axes = (
+        ("gap_m", "query"),
+        ("gap_deg", "query_near"),
+        ("gap_m", "query_walk"),
+        ("displaced_in_view", "query_displaced"),
+    )
+    for axis, split in axes:
         row = table[(table["axis"] == axis) & (table["split"] == split)].iloc[0]
         values = csv.loc[csv["split"] == split, axis]
         assert int(row["frames"]) == len(values)

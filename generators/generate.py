@@ -12,6 +12,7 @@ import logging
 import multiprocessing as mp
 import os
 import shutil
+from collections import deque
 from concurrent.futures import Future, ProcessPoolExecutor, ThreadPoolExecutor, as_completed
 from dataclasses import asdict
 from pathlib import Path
@@ -22,7 +23,6 @@ from tqdm import tqdm
 
 from generators.difficulty import changes_in_view, measure_difficulty
 from generators.layout import Layout, build_layout
-from generators.odometry import align_to, drift, estimate_trajectory
 from generators.render import Renderer, create_renderer
 from generators.sensor import blend_subframes, exposure_poses, sensor_colour, sensor_depth
 from generators.spec import GENERATOR_VERSION, SceneSpec, SuiteSpec, spec_hash, spec_record
@@ -140,28 +140,33 @@ def render_split(
 ) -> int:
     """Render and write one split; returns the number of frames reused from a previous run.
 
-    The sensor's noise, PNG encoding and writing of frame i (:func:`record`) overlap the rendering of frame
-    i+1 (one writer thread; numpy and cv2 release the GIL). Each frame still ends with its pose file, so an
-    interrupted run loses at most the frame in flight, which resume redoes.
+    The sensor's noise, PNG encoding and writing of a frame (:func:`record`, twice the rendering's time)
+    run on :data:`WRITERS` threads beside the rendering of the next frames (numpy and cv2 release the GIL).
+    Each frame is seeded on its own and ends with its pose file, so an interrupted run loses at most the
+    frames in flight, which resume redoes.
     """
     writer.write_intrinsics(split, K)
     reused = 0
-    pending: Future | None = None
+    pending: deque[Future] = deque()
     blurred = split == "mapping" and len(poses) > 1
-    with ThreadPoolExecutor(max_workers=1) as pool:
+    with ThreadPoolExecutor(max_workers=WRITERS) as pool:
         for i, T in enumerate(poses):
             if resume and writer.has_frame(split, i):
                 reused += 1
             else:
                 frame = capture(renderer, T, K, spec, _sweep_neighbour(poses, i) if blurred else None)
-                if pending is not None:
-                    pending.result()
-                pending = pool.submit(record, writer, split, i, frame, T, K, spec, level)
+                if len(pending) == WRITERS:
+                    pending.popleft().result()
+                pending.append(pool.submit(record, writer, split, i, frame, T, K, spec, level))
             if bar is not None:
                 bar.update(1)
-        if pending is not None:
-            pending.result()
+        while pending:
+            pending.popleft().result()
     return reused
+
+
+WRITERS = 2
+"""Frames being written at once (each holds its render in memory)."""
 
 
 RENDER_ORDER = (PLAIN, NEAR, WALK, LIGHT, DISPLACED)
@@ -290,6 +295,8 @@ def estimate_mapping_poses(root: Path, writer: SceneWriter, truth: np.ndarray, K
     """Replace the mapping split's poses by those RGB-D odometry estimates from its recorded frames,
     aligned to the true world frame part by part (a jump between floors splits the sweep); the truth goes
     to ``mapping/pose_truth``. Returns the record for ``scene.json``: the drift and the pose graph."""
+    from generators.odometry import align_to, drift, estimate_trajectory  # torch and open3d: only when asked
+
     frames = [root / "mapping" / k for k in ("color", "depth")]
     names = [f"{frame_id(i)}.png" for i in range(len(truth))]
     rgbs = [io.read_rgb(frames[0] / n) for n in names]

@@ -138,7 +138,7 @@ def _headline(pooled: dict[str, Any]) -> dict[str, Any]:
 
 def table(rows: list[dict[str, Any]], pooled: dict[str, Any]) -> list[str]:
     """Printable lines: one per scene and a pooled one, per stage."""
-    from openreloc_bench.openreloc.instance_eval import OBJECT_ERRORS, SIZES
+    from openreloc_bench.reconstruction.instance_eval import OBJECT_ERRORS, SIZES
 
     lines = [
         f"{'scene':<10} {'map P/R@.5':>11} {'P/R@.25':>10} {'pred':>5} {'gt':>4}  objects found/split/merged/missed"

@@ -47,8 +47,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from openreloc_bench import config as cfgmod
     from openreloc_bench.data import paths
+    from openreloc_bench.harness.merger_training import collect_examples, pair_accuracy
     from openreloc_bench.harness.training_data import MERGER_DATA, scene_seeds, training_scene_sets
-    from openreloc_bench.openreloc.merger_training import collect_examples, pair_accuracy
     from openreloc_bench.openreloc.method import OpenReLocConfig
     from openreloc_bench.reconstruction.instance_repair import FEATURES, fit_merger
     from openreloc_bench.vision import create_segmenter

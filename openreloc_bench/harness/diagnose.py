@@ -5,7 +5,7 @@ Per scene, for one track:
   under-segmentation over the objects covering >= 1% of the image, and the boundary F-score at 2 px,
   on ``frames`` evenly spaced frames of each split;
 - **the map**: 3D instance precision / recall at IoU 0.5 and 0.25 and each true object's error by size
-  (:mod:`openreloc.instance_eval`), as the map recorded them when it was built;
+  (:mod:`reconstruction.instance_eval`), as the map recorded them when it was built;
 - **localization** over every query of each split: recall at 50 / 25 cm, and the association
   precision (accepted matches whose landmark and query segment lie mostly on the same true object;
   the method never sees that truth);
@@ -33,8 +33,8 @@ from openreloc_bench.harness.metrics import summarize
 from openreloc_bench.harness.pose_stages import map_summary, pool_stages, query_stages, summarize_stages
 from openreloc_bench.harness.query_picture import draw_query
 from openreloc_bench.methods import Failure, PoseEstimate, QueryFrame, create_method
-from openreloc_bench.openreloc.instance_eval import box_point_labels, boxed_objects
 from openreloc_bench.openreloc.map import ObjectMap
+from openreloc_bench.reconstruction.instance_eval import box_point_labels, boxed_objects
 from openreloc_bench.tracks import DEFAULT_TRACK, ORACLE_MASK, PREDICTED, Track
 from openreloc_bench.vision import create_segmenter
 from openreloc_bench.vision.base import ObjectMask, Segmenter, label_image

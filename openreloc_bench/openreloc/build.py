@@ -30,12 +30,12 @@ from openreloc_bench.errors import ConfigError
 from openreloc_bench.openreloc.anchors import AnchorBuildConfig, Anchors, build_anchors
 from openreloc_bench.openreloc.descriptors import DescriptorConfig, compute_descriptors
 from openreloc_bench.openreloc.filtering import FilterConfig, invalid_landmarks
-from openreloc_bench.openreloc.instance_eval import box_point_labels, boxed_objects, instance_report
 from openreloc_bench.openreloc.map import Landmark, ObjectMap
 from openreloc_bench.openreloc.reference_frames import ReferenceFrameConfig, landmark_sightings, select_reference_frames
 from openreloc_bench.openreloc.scene_graph import GraphConfig, build_scene_graph
 from openreloc_bench.reconstruction.fusion import FusionConfig, Reconstruction, fuse_tsdf
 from openreloc_bench.reconstruction.gravity import estimate_up
+from openreloc_bench.reconstruction.instance_eval import box_point_labels, boxed_objects, instance_report
 from openreloc_bench.reconstruction.instances import GroupedInstanceConfig, label_instances
 from openreloc_bench.reconstruction.lifting import instance_sets, lift_by_voting
 from openreloc_bench.reconstruction.observation import FrameObservation, ObservationConfig, observe

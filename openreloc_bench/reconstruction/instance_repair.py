@@ -16,7 +16,7 @@ on the validation apartments most clusters are pieces of one object. Two optiona
    segmenter's boundary strength along the border averaged over every view, the border's shape
    (normals, convex or concave), colour, and the two instances' sizes. The classifier is a logistic
    regression trained on training-range scenes, where the true instances are free
-   (:mod:`openreloc_bench.openreloc.merger_training`, ``train-merger``); rounds of merging and filling
+   (:mod:`openreloc_bench.harness.merger_training`, ``train-merger``); rounds of merging and filling
    repeat until nothing changes. Off by default: on the validation apartments it raised instance precision but joined
    objects that localization needs apart (``docs/experiments.md``).
 

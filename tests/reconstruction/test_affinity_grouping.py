@@ -3,9 +3,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from openreloc_bench.openreloc.instance_eval import instance_report
 from openreloc_bench.reconstruction import affinity_grouping as A
 from openreloc_bench.reconstruction.fusion import FusionConfig, fuse_tsdf
+from openreloc_bench.reconstruction.instance_eval import instance_report
 from openreloc_bench.reconstruction.lifting import VotingConfig, instance_sets, lift_by_voting
 from openreloc_bench.reconstruction.observation import ObservationConfig, observe
 from tests.openreloc.boxworld import NoisyMaskSegmenter, boxworld_sequence

@@ -8,11 +8,11 @@ import pytest
 
 from openreloc_bench.data.scene import Scene
 from openreloc_bench.errors import DataError
+from openreloc_bench.harness.merger_training import dominant_objects, scene_examples
 from openreloc_bench.openreloc.build import MappingConfig, lift_instances
-from openreloc_bench.openreloc.instance_eval import box_point_labels, instance_report
-from openreloc_bench.openreloc.merger_training import dominant_objects, scene_examples
 from openreloc_bench.reconstruction import instance_repair as R
 from openreloc_bench.reconstruction.incidence import view_evidence
+from openreloc_bench.reconstruction.instance_eval import box_point_labels, instance_report
 from openreloc_bench.reconstruction.lifting import instance_sets
 from openreloc_bench.reconstruction.observation import FrameObservation
 from openreloc_bench.vision import create_segmenter

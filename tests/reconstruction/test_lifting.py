@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from openreloc_bench.openreloc.instance_eval import instance_report
 from openreloc_bench.reconstruction import lifting
 from openreloc_bench.reconstruction.incidence import incidence
+from openreloc_bench.reconstruction.instance_eval import instance_report
 from openreloc_bench.reconstruction.lifting import (
     ClusteringConfig,
     VotingConfig,

@@ -19,9 +19,9 @@ from openreloc_bench.bars import tqdm
 from openreloc_bench.data.scene import Scene
 from openreloc_bench.errors import DataError
 from openreloc_bench.openreloc.build import MappingConfig, lift_instances
-from openreloc_bench.openreloc.instance_eval import box_point_labels, boxed_objects
 from openreloc_bench.reconstruction import instance_repair as repair
 from openreloc_bench.reconstruction.incidence import view_evidence
+from openreloc_bench.reconstruction.instance_eval import box_point_labels, boxed_objects
 from openreloc_bench.vision.base import Segmenter
 
 

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from openreloc_bench.data.scene import ObjectInfo
-from openreloc_bench.openreloc.instance_eval import box_point_labels, instance_report
+from openreloc_bench.reconstruction.instance_eval import box_point_labels, instance_report
 
 
 def line(n: int, length: float) -> np.ndarray:

@@ -1,9 +1,10 @@
 """Generate the scenes of a suite YAML (``scenes/*.yaml``) into ``OUT/<scene name>/``.
 
 Each scene gets the mapping split and every query split of ``openreloc_bench/data/splits.py`` in the
-ScanNet-export layout, and a ``difficulty.csv`` measuring every query frame. ``--resume`` keeps finished frames of an interrupted run; ``--workers N`` renders N scenes
-in parallel processes. A scene folder generated from another spec (or holding other files) is never
-replaced, and OUT is locked while generation runs.
+ScanNet-export layout, and a ``difficulty.csv`` measuring every query frame. ``--resume`` keeps finished
+frames of an interrupted run; ``--workers N`` renders N scenes in parallel processes. A scene folder
+generated from another spec (or holding other files) is never replaced, and OUT is locked while
+generation runs.
 """
 
 from __future__ import annotations

@@ -14,7 +14,6 @@ pool can fork/spawn workers safely.
 
 from __future__ import annotations
 
-import io as _io
 import logging
 import os
 import struct
@@ -171,11 +170,10 @@ def _compiled_model(
     """The layout's MuJoCo model and the instance of each geom: from ``path`` when it holds them (a
     model's binary dump reads back exactly), else compiled from :func:`build_mjcf` (drawing every texture,
     seconds on a large scene) and stored there."""
-    instances = path.with_suffix(".npy") if path is not None else None
-    if path is not None and instances is not None and path.is_file() and instances.is_file():
+    if path is not None and path.is_file() and path.with_suffix(".npy").is_file():
         try:
             model = mujoco.MjModel.from_binary_path(str(path))
-            geom_instance = np.load(instances, allow_pickle=False).tolist()
+            geom_instance = np.load(path.with_suffix(".npy"), allow_pickle=False).tolist()
             if len(geom_instance) == model.ngeom:
                 return model, geom_instance
         except (OSError, ValueError):  # a damaged file: compile again
@@ -185,12 +183,10 @@ def _compiled_model(
         model = mujoco.MjModel.from_xml_string(xml, assets)
     except ValueError as e:
         raise RuntimeError(f"MuJoCo could not compile the scene: {e}") from None
-    if path is not None and instances is not None:
+    if path is not None:
         buf = np.zeros(mujoco.mj_sizeModel(model), np.uint8)
         mujoco.mj_saveModel(model, None, buf)
-        stored = _io.BytesIO()
-        np.save(stored, np.asarray(geom_instance, np.int64), allow_pickle=False)
-        io.atomic_write_bytes(instances, stored.getvalue())
+        io.atomic_write_npy(path.with_suffix(".npy"), np.asarray(geom_instance, np.int64))
         io.atomic_write_bytes(path, buf.tobytes())
     return model, geom_instance
 

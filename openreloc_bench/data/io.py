@@ -6,6 +6,7 @@ an interrupted run never leaves a half-written file that a resumed run would tru
 
 from __future__ import annotations
 
+import io as stdio
 import json
 import os
 import tempfile
@@ -89,6 +90,13 @@ def atomic_write_bytes(path: Path | str, data: bytes) -> None:
 
 def atomic_write_text(path: Path | str, text: str) -> None:
     atomic_write_bytes(path, text.encode("utf-8"))
+
+
+def atomic_write_npy(path: Path | str, array: np.ndarray) -> None:
+    """One array as a ``.npy`` file (no pickles), written atomically (:func:`atomic_write_bytes`)."""
+    buf = stdio.BytesIO()
+    np.save(buf, array, allow_pickle=False)
+    atomic_write_bytes(path, buf.getvalue())
 
 
 def write_json(path: Path | str, obj: Any) -> None:

@@ -19,7 +19,6 @@ Final ``info``: ``success``, ``spl`` = S * l / max(p, l) (l: geodesic start dist
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from io import BytesIO
 from typing import Any
 
 import numpy as np
@@ -109,9 +108,7 @@ class ObjectGoalEnv(IndoorEnv):
                 if not path.is_file():
                     encoder = create_encoder(cfg.text_encoder, **cfg.text_encoder_options)
                     emb = np.clip(np.asarray(encoder.encode_texts(texts), np.float32), -1.0, 1.0)
-                    buf = BytesIO()
-                    np.save(buf, emb)
-                    io.atomic_write_bytes(path, buf.getvalue())
+                    io.atomic_write_npy(path, emb)
         return np.load(path)
 
     def _task_spaces(self) -> dict[str, spaces.Space]:

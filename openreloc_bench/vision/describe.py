@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import base64
 import hashlib
-import io as _io
 import json
 import logging
 import os
@@ -86,10 +85,8 @@ class OfflineDescriber(Describer):
         except (OSError, ValueError):  # not stored yet, or a damaged file: embed again
             pass
         table = np.asarray(self.encoder.encode_texts(phrases), np.float32)
-        buf = _io.BytesIO()
-        np.save(buf, table, allow_pickle=False)
         try:
-            io.atomic_write_bytes(path, buf.getvalue())
+            io.atomic_write_npy(path, table)
         except OSError as e:  # a read-only cache costs time, not the answer
             log.warning("cannot store the describer's phrase table in %s (%s)", path.parent, e)
         return table

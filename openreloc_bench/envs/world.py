@@ -26,6 +26,7 @@ from generators.spec import SceneSpec, spec_hash
 from generators.trajectories import CHECK_WIDTH, MIN_OBJECT_SHARE, Occupancy, occupancy_grid, walkable_region
 from openreloc_bench import config, geometry
 from openreloc_bench.data.scene import Scene
+from openreloc_bench.envs.scenes import scene_key
 from openreloc_bench.errors import DataError
 
 PX_PER_M = 48
@@ -94,7 +95,7 @@ class World:
         self._compiled = (
             None
             if compiled_dir is None
-            else compiled_dir / f"{scene.name}-{scene.spec_hash}-{self._max_size[0]}x{self._max_size[1]}.mjb"
+            else compiled_dir / f"{scene_key(scene)}-{self._max_size[0]}x{self._max_size[1]}.mjb"
         )
         self._renderer: Renderer | None = None
         self._maps: dict[int, np.ndarray] = {}

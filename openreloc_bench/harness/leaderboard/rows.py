@@ -4,6 +4,7 @@ recall per bin of each query difficulty (the numbers of ``difficulty.csv``)."""
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Sequence
 from pathlib import Path
@@ -15,7 +16,7 @@ from openreloc_bench.data.runs import QUERY_COLUMNS, backfill_difficulty, load_m
 from openreloc_bench.data.splits import DISPLACED_SPLIT, PLAIN_SPLIT
 from openreloc_bench.errors import DataError
 from openreloc_bench.harness.ablations import ROBUSTNESS_ROWS
-from openreloc_bench.harness.metrics import THRESHOLDS_M, paired_difference, summarize
+from openreloc_bench.harness.metrics import RECALLS, hits, paired_difference, summarize
 from openreloc_bench.harness.tables import SCENE_KEYS
 from openreloc_bench.methods import uses_masks
 from openreloc_bench.tracks import MASK_FREE
@@ -155,41 +156,27 @@ def paired_differences(q: pd.DataFrame, split: str = HEADLINE_SPLIT) -> pd.DataF
     """Every two methods of a track (those that read no masks stand in each) compared on the queries of
     ``split`` both answered: ``diff`` = ``method``'s recall minus ``other``'s in points (seeds averaged per
     query), with its 95% interval (:func:`~openreloc_bench.harness.metrics.paired_difference`). One row
-    per (track, method, other, recall column), both orders."""
+    per (track, method, other, recall column), both orders: the second is the first negated."""
     rows = []
     s = q[q["split"] == split]
     for track, group in track_groups(s):
-        keyed = group.assign(_key=group["scene"].astype(str) + "/" + group["query"].astype(str))
-        inside = {
-            col: keyed.assign(_hit=keyed["t_err_m"].fillna(np.inf) < THRESHOLDS_M[col.removeprefix("recall_")])
-            .groupby(["method", "_key"])["_hit"]
-            .mean()
-            .unstack(0)
-            for col in PAIRED_COLUMNS
-        }
-        scene_of = keyed.drop_duplicates("_key").set_index("_key")["scene"]
-        methods = sorted(keyed["method"].unique())
-        for col, table in inside.items():
-            for a in methods:
-                for b in methods:
-                    both = table[[a, b]].dropna() if a != b else None
-                    if both is None or both.empty:
-                        continue
-                    diff, lo, hi = paired_difference(
-                        both[a].to_numpy(), both[b].to_numpy(), scene_of[both.index].to_numpy()
-                    )
-                    rows.append(
-                        {
-                            "track": track,
-                            "method": a,
-                            "other": b,
-                            "column": col,
-                            "diff": diff,
-                            "lo": lo,
-                            "hi": hi,
-                            "n_queries": len(both),
-                        }
-                    )
+        inside = pd.DataFrame(
+            hits(group["t_err_m"].to_numpy(), group["r_err_deg"].to_numpy()), columns=RECALLS, index=group.index
+        )
+        keyed = inside[list(PAIRED_COLUMNS)].assign(method=group["method"], scene=group["scene"], query=group["query"])
+        shares = keyed.groupby(["method", "scene", "query"])[list(PAIRED_COLUMNS)].mean()  # seeds averaged
+        for col in PAIRED_COLUMNS:
+            table = shares[col].unstack(0)
+            for a, b in itertools.combinations(sorted(table.columns), 2):
+                both = table[[a, b]].dropna()
+                if both.empty:
+                    continue
+                diff, lo, hi = paired_difference(
+                    both[a].to_numpy(), both[b].to_numpy(), both.index.get_level_values("scene").to_numpy()
+                )
+                for m, other, sign in ((a, b, 1), (b, a, -1)):
+                    low, high = sorted((sign * lo, sign * hi))
+                    rows.append((track, m, other, col, sign * diff, low, high, len(both)))
     return pd.DataFrame(rows, columns=["track", "method", "other", "column", "diff", "lo", "hi", "n_queries"])
 
 

@@ -105,6 +105,7 @@ def _photos() -> tuple[np.ndarray, np.ndarray]:
         return data["images"], data["materials"]
 
 
+@lru_cache(maxsize=1)
 def photo_materials() -> frozenset[str]:
     """The materials there are photographs of."""
     return frozenset(str(m) for m in _photos()[1])
@@ -116,13 +117,11 @@ def _seamless(image: np.ndarray) -> np.ndarray:
     falling to 0 where its own seam lies; the blend keeps the contrast (weights normalised in norm 2)."""
     n = image.shape[0]
     w = 1 - np.abs(np.arange(n) + 0.5 - n / 2) / (n / 2)
-    norm = np.sqrt(w**2 + (1 - w) ** 2)
     mean = image.mean()
     out = image - mean
     for axis, weight in ((1, w[None, :]), (0, w[:, None])):
-        out = (weight * out + (1 - weight) * np.roll(out, n // 2, axis=axis)) / (
-            norm[None, :] if axis else norm[:, None]
-        )
+        shifted = np.roll(out, n // 2, axis=axis)
+        out = (weight * out + (1 - weight) * shifted) / np.sqrt(weight**2 + (1 - weight) ** 2)
     return out + mean
 
 
